@@ -1,0 +1,1 @@
+//! The `dampscope` command line.

@@ -1,0 +1,32 @@
+//! Decay estimation: one band's energy sequence → reverberation times and damping ratios.
+//!
+//! The estimator is online ([`schroeder::OnlineSchroeder`]): every frame costs O(1) work and the
+//! memory is the frame sequence itself (a few floats per frame at the front end's frame rate).
+//! A provisional estimate can be asked for at any time; the final one at the end of the decay.
+//! Line fits on the Schroeder curve live in [`regression`], the damping conversions in
+//! [`damping`], and the figures that describe one decay in [`estimate`].
+
+pub mod damping;
+pub mod estimate;
+pub mod range;
+pub mod regression;
+pub mod schroeder;
+
+pub use estimate::{DecayEstimate, Flag};
+pub use range::EvaluationRange;
+pub use schroeder::OnlineSchroeder;
+
+/// Consumes one band's energy sequence, frame by frame, and estimates its decay.
+pub trait DecayEstimator: Send {
+    /// Adds the next frame: its band energy (≥ 0) and the frequency present in it (Hz, or NaN).
+    fn push_frame(&mut self, energy: f64, frequency_hz: f64);
+
+    /// The estimate from the frames seen so far (the Schroeder curve truncated at the last frame).
+    fn provisional(&self) -> DecayEstimate;
+
+    /// Number of frames consumed so far.
+    fn frames(&self) -> usize;
+
+    /// Forgets everything, ready for a new decay.
+    fn reset(&mut self);
+}

@@ -1,0 +1,38 @@
+//! Crate-level error type: every library error says what was expected, what was found, and where.
+
+use crate::source::SourceError;
+
+/// Any error that stops a dampscope operation.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The input could not be read or decoded.
+    #[error(transparent)]
+    Source(#[from] SourceError),
+    /// A setting is impossible (empty band, window longer than allowed, …).
+    #[error("invalid setting {name}: {reason}")]
+    InvalidSetting {
+        /// The option or field at fault.
+        name: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// Writing results failed.
+    #[error("cannot write results: {0}")]
+    Output(String),
+    /// An I/O failure outside of input decoding.
+    #[error(transparent)]
+    Io(#[from] std::io::Error),
+}
+
+/// Result with the crate's [`Error`].
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+impl Error {
+    /// Shorthand for [`Error::InvalidSetting`].
+    pub fn setting(name: impl Into<String>, reason: impl Into<String>) -> Self {
+        Error::InvalidSetting {
+            name: name.into(),
+            reason: reason.into(),
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! STFT front end.

@@ -1,0 +1,1 @@
+//! Result tables: CSV and JSON lines.

@@ -1,0 +1,112 @@
+//! Sources: where decays come from.
+//!
+//! A [`Source`] yields blocks of multichannel samples (channel-major) and knows its sample rate
+//! and channel names. It never holds a whole recording unless the format forces it, so that
+//! standard input can be analysed while it still arrives.
+
+/// Why a source could not deliver samples. Each variant says what was expected and what was found.
+#[derive(Debug, thiserror::Error)]
+pub enum SourceError {
+    /// Reading failed at the operating-system level.
+    #[error("cannot read {what}: {source}")]
+    Io {
+        /// What was being read (a path, or "standard input").
+        what: String,
+        /// The underlying error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The input is not in any format dampscope reads.
+    #[error("{what}: not a recognised input ({detail})")]
+    UnrecognisedFormat {
+        /// What was being read.
+        what: String,
+        /// What was expected and what the first bytes looked like.
+        detail: String,
+    },
+    /// The input is in a known format but broken.
+    #[error("{what}: malformed {format} input: {detail}")]
+    Malformed {
+        /// What was being read.
+        what: String,
+        /// The format (wav, csv, raw, toml, json).
+        format: &'static str,
+        /// Expected vs found, with a line or byte position where known.
+        detail: String,
+    },
+    /// The input ended before it was complete.
+    #[error("{what}: input truncated: expected {expected}, got {got}")]
+    Truncated {
+        /// What was being read.
+        what: String,
+        /// What the header or frame size promised.
+        expected: String,
+        /// What arrived.
+        got: String,
+    },
+    /// The number of channels does not match what another file or option says.
+    #[error("{what}: expected {expected} channels, got {got}")]
+    ChannelCount {
+        /// What was being read.
+        what: String,
+        /// Channels expected.
+        expected: usize,
+        /// Channels found.
+        got: usize,
+    },
+    /// The input holds no samples at all.
+    #[error("{what}: no samples")]
+    Empty {
+        /// What was being read.
+        what: String,
+    },
+    /// A required setting is missing or impossible (sample rate, channel count, …).
+    #[error("{what}: {detail}")]
+    Setting {
+        /// What was being read.
+        what: String,
+        /// What is missing or wrong.
+        detail: String,
+    },
+}
+
+/// Sample rate and channel names of a source.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct SignalInfo {
+    /// Samples per second per channel.
+    pub sample_rate_hz: f64,
+    /// One name per channel (sensor ids for a recording set, `ch0`, `ch1`, … otherwise).
+    pub channel_names: Vec<String>,
+}
+
+impl SignalInfo {
+    /// Number of channels.
+    pub fn channels(&self) -> usize {
+        self.channel_names.len()
+    }
+}
+
+/// A block of samples, channel-major: `channels[c][i]` is sample i of channel c.
+/// All channels hold the same number of samples.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Block {
+    /// One vector of samples per channel.
+    pub channels: Vec<Vec<f64>>,
+}
+
+impl Block {
+    /// Number of sample frames (samples per channel) in the block.
+    pub fn frames(&self) -> usize {
+        self.channels.first().map_or(0, Vec::len)
+    }
+}
+
+/// A stream of multichannel samples.
+pub trait Source: Send {
+    /// Sample rate and channel names.
+    fn info(&self) -> &SignalInfo;
+
+    /// Replaces the contents of `block` with up to `max_frames` sample frames.
+    /// Returns `Ok(false)` (and an empty block) at the end of the input.
+    fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
+}
