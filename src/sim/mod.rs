@@ -1,1 +1,5 @@
 //! The finite-element plate simulator (8-node hexahedra), one more source of decays.
+
+pub mod system;
+
+pub use system::{FeSystem, Sls, StiffnessTerm};
