@@ -1,4 +1,6 @@
-//! Band definitions.
+//! Band definitions and the command-line forms `LO:HI` and `LO:HI:WIDTH`.
+
+use crate::error::{Error, Result};
 
 /// A frequency band in Hz.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -7,6 +9,97 @@ pub struct Band {
     pub lo_hz: f64,
     /// Upper edge, Hz.
     pub hi_hz: f64,
-    /// Centre used for D = 1.0994 / (T60 f_center), Hz.
+    /// Centre used for D = 1.0994 / (T60 f_center), Hz (arithmetic for plain bands, exact
+    /// geometric midband for IEC octave bands, the mode for mode-centred bands).
     pub center_hz: f64,
+    /// Label frequency for tables, Hz (the IEC nominal frequency for octave bands, else the centre).
+    pub nominal_hz: f64,
+}
+
+impl Band {
+    /// A band from `lo_hz` to `hi_hz` with its arithmetic centre (as the report's 150–250 Hz → 200 Hz).
+    pub fn new(lo_hz: f64, hi_hz: f64) -> Result<Self> {
+        if !(lo_hz.is_finite() && hi_hz.is_finite() && lo_hz >= 0.0 && hi_hz > lo_hz) {
+            return Err(Error::setting(
+                "band",
+                format!("expected 0 <= LO < HI, got {lo_hz}:{hi_hz}"),
+            ));
+        }
+        let c = 0.5 * (lo_hz + hi_hz);
+        Ok(Band {
+            lo_hz,
+            hi_hz,
+            center_hz: c,
+            nominal_hz: c,
+        })
+    }
+
+    /// Bandwidth in Hz.
+    pub fn width_hz(&self) -> f64 {
+        self.hi_hz - self.lo_hz
+    }
+}
+
+fn parse_numbers(text: &str, what: &str, count: usize) -> Result<Vec<f64>> {
+    let parts: Vec<&str> = text.split(':').collect();
+    if parts.len() != count {
+        return Err(Error::setting(
+            what,
+            format!("expected {count} numbers separated by ':', got '{text}'"),
+        ));
+    }
+    parts
+        .iter()
+        .map(|p| {
+            p.trim()
+                .parse::<f64>()
+                .map_err(|_| Error::setting(what, format!("'{p}' in '{text}' is not a number")))
+        })
+        .collect()
+}
+
+/// Parses `LO:HI` (Hz) into one band.
+pub fn parse_band(text: &str) -> Result<Band> {
+    let v = parse_numbers(text, "--band", 2)?;
+    Band::new(v[0], v[1])
+}
+
+/// Parses `LO:HI:WIDTH` (Hz) into consecutive bands of `WIDTH` from `LO` up to `HI`
+/// (the last band ends at or below `HI`).
+pub fn parse_band_range(text: &str) -> Result<Vec<Band>> {
+    let v = parse_numbers(text, "--bands", 3)?;
+    let (lo, hi, width) = (v[0], v[1], v[2]);
+    if !(width > 0.0 && hi > lo && lo >= 0.0) || !(hi - lo).is_finite() {
+        return Err(Error::setting(
+            "--bands",
+            format!("expected 0 <= LO < HI and WIDTH > 0, got '{text}'"),
+        ));
+    }
+    let n = ((hi - lo) / width + 1e-9).floor() as usize;
+    if n == 0 || n > 100_000 {
+        return Err(Error::setting(
+            "--bands",
+            format!("'{text}' gives {n} bands; expected 1 to 100000"),
+        ));
+    }
+    (0..n)
+        .map(|i| Band::new(lo + i as f64 * width, lo + (i + 1) as f64 * width))
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_bands() {
+        let b = parse_band("150:250").unwrap();
+        assert_eq!((b.lo_hz, b.hi_hz, b.center_hz), (150.0, 250.0, 200.0));
+        let bs = parse_band_range("50:550:50").unwrap();
+        assert_eq!(bs.len(), 10);
+        assert_eq!(bs[9].hi_hz, 550.0);
+        assert!(parse_band("250:150").is_err());
+        assert!(parse_band("a:b").is_err());
+        assert!(parse_band_range("0:100:0").is_err());
+    }
 }
