@@ -97,7 +97,9 @@ impl StftFrontEnd {
             return Err(Error::setting("bands", "no bands given"));
         }
         let win_len = win_len as usize;
-        let hop = ((win_len as f64) * (1.0 - settings.overlap)).round().max(1.0) as usize;
+        let hop = ((win_len as f64) * (1.0 - settings.overlap))
+            .round()
+            .max(1.0) as usize;
         let nfft = win_len * settings.zero_pad;
         // Periodic Hann window.
         let window: Vec<f64> = (0..win_len)
@@ -152,9 +154,9 @@ impl StftFrontEnd {
         }
         self.fft_in[w..].iter_mut().for_each(|v| *v = 0.0);
         // Lengths are fixed at construction, so the FFT cannot fail.
-        let _ = self
-            .fft
-            .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
+        let _ =
+            self.fft
+                .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
         for (p, c) in self.power.iter_mut().zip(&self.spectrum) {
             *p = c.norm_sqr();
         }
@@ -278,7 +280,10 @@ mod tests {
                 (-2.0 * t).exp() * (2.0 * std::f64::consts::PI * 52.0 * t).sin()
             })
             .collect();
-        let bands = [Band::new(40.0, 60.0).unwrap(), Band::new(60.0, 100.0).unwrap()];
+        let bands = [
+            Band::new(40.0, 60.0).unwrap(),
+            Band::new(60.0, 100.0).unwrap(),
+        ];
         let run = |block: usize| {
             let mut fe = StftFrontEnd::new(StftSettings::default(), fs, &bands).unwrap();
             let mut out = Vec::new();
