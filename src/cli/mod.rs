@@ -1,1 +1,1 @@
-//! The `dampscope` command line.
+//! CLI (pending).
