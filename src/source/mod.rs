@@ -110,3 +110,11 @@ pub trait Source: Send {
     /// Returns `Ok(false)` (and an empty block) at the end of the input.
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
 }
+
+pub mod wav_out;
+
+pub use wav_out::{write_wav_f32, WavStreamWriter};
+mod frames;
+pub mod wav;
+
+pub use wav::{WavHeader, WavSource};
