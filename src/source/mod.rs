@@ -118,3 +118,17 @@ mod frames;
 pub mod wav;
 
 pub use wav::{WavHeader, WavSource};
+pub mod csv;
+pub mod raw;
+
+pub use csv::CsvSource;
+pub use raw::{RawFormat, RawSource};
+pub mod recording_set;
+
+pub use recording_set::{
+    open_recording_set, write_recording_set, DecayKind, Excitation, RecordingMeta, RecordingSet,
+    Sensor,
+};
+pub mod stdin;
+
+pub use stdin::{open_input, open_stream, InputOptions, OpenedInput};
