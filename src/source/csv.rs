@@ -81,7 +81,11 @@ impl<R: BufRead + Send> CsvSource<R> {
     ///
     /// Errors: `Empty` without any data row, `Setting` when no sample rate can be found,
     /// `Malformed` for bad rows or non-uniform time.
-    pub fn new(reader: R, what: impl Into<String>, fs_hz: Option<f64>) -> Result<Self, SourceError> {
+    pub fn new(
+        reader: R,
+        what: impl Into<String>,
+        fs_hz: Option<f64>,
+    ) -> Result<Self, SourceError> {
         let what = what.into();
         if let Some(fs) = fs_hz {
             check_fs(&what, fs)?;

@@ -45,7 +45,9 @@ impl FromStr for RawFormat {
         match s.trim().to_ascii_lowercase().as_str() {
             "f32" => Ok(RawFormat::F32),
             "f64" => Ok(RawFormat::F64),
-            other => Err(format!("raw sample format: expected f32 or f64, got {other:?}")),
+            other => Err(format!(
+                "raw sample format: expected f32 or f64, got {other:?}"
+            )),
         }
     }
 }

@@ -84,11 +84,7 @@ fn looks_like_text(bytes: &[u8]) -> bool {
         .all(|c| !c.is_control() || matches!(c, '\t' | '\r' | '\n'))
 }
 
-fn check_channels(
-    what: &str,
-    source: &dyn Source,
-    opts: &InputOptions,
-) -> Result<(), SourceError> {
+fn check_channels(what: &str, source: &dyn Source, opts: &InputOptions) -> Result<(), SourceError> {
     match opts.channels {
         Some(n) if n != source.info().channels() => Err(SourceError::ChannelCount {
             what: what.to_string(),

@@ -125,13 +125,15 @@ fn parse_fmt(b: &[u8], what: &str) -> Result<(u32, usize, Codec), SourceError> {
         (1, 2..=4) => Codec::Int(container),
         (3, 4) => Codec::F32,
         (3, 8) => Codec::F64,
-        _ => return Err(malformed(
-            what,
-            format!(
+        _ => {
+            return Err(malformed(
+                what,
+                format!(
                 "integer PCM (tag 1) of 8/16/24/32 bits or float (tag 3) of 32/64 bits expected, \
                      got format tag {tag} with {bits} bits in {container}-byte samples"
             ),
-        )),
+            ))
+        }
     };
     Ok((rate, channels, codec))
 }
