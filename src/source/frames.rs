@@ -6,6 +6,9 @@ use std::io::{self, Read};
 
 use super::{Block, SourceError};
 
+/// Upper bound on the bytes read by one `read_block` call.
+const MAX_BLOCK_BYTES: usize = 1 << 20;
+
 /// How one sample is stored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Codec {
@@ -175,7 +178,10 @@ impl<R: Read> FrameReader<R> {
             return Ok(false);
         }
         let fb = self.frame_bytes();
-        let mut want = max_frames.max(1).saturating_mul(fb) as u64;
+        // At most ~1 MiB per call (but at least one frame): memory stays bounded whatever the
+        // caller asks; fewer frames than asked is within the contract.
+        let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
+        let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb) as u64;
         if let Some(n) = self.announced_bytes {
             want = want.min(n - self.bytes_read);
         }

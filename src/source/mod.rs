@@ -132,3 +132,7 @@ pub use recording_set::{
 pub mod stdin;
 
 pub use stdin::{open_input, open_stream, InputOptions, OpenedInput};
+pub mod noise;
+pub mod synth;
+
+pub use synth::{synthesize, Mode, SynthSource, SynthSpec};
