@@ -105,8 +105,11 @@ fn malformed(path: &Path, format: &'static str, detail: String) -> SourceError {
     }
 }
 
+/// A small CSV table: lower-cased header, rows with their line numbers.
+type Table = (Vec<String>, Vec<(u64, Vec<String>)>);
+
 /// Reads a small CSV table: returns the lower-cased header and the rows with their line numbers.
-fn read_table(path: &Path) -> Result<(Vec<String>, Vec<(u64, Vec<String>)>), SourceError> {
+fn read_table(path: &Path) -> Result<Table, SourceError> {
     let file = File::open(path).map_err(|e| io_err(path, e))?;
     let mut r = ::csv::ReaderBuilder::new()
         .trim(::csv::Trim::All)
