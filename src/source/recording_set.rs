@@ -254,6 +254,7 @@ pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
         let what = csv.display().to_string();
         let f = File::open(&csv).map_err(|e| io_err(&csv, e))?;
         let s = CsvSource::new(BufReader::new(f), what.clone(), meta.fs)?;
+        check_column_order(&what, &s.info().channel_names, &ids)?;
         (what, s.info().channels(), Box::new(s))
     } else {
         return Err(SourceError::Setting {
@@ -275,6 +276,28 @@ pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
         excitation,
         source,
     })
+}
+
+/// Columns of `responses.csv` are named by sensor id and taken in `sensors.csv` row order. When
+/// the header holds exactly the sensor ids but in another order, the data would be silently
+/// mislabelled: that is an error. Other names (`ch0`, …) are renamed by position.
+fn check_column_order(what: &str, columns: &[String], ids: &[String]) -> Result<(), SourceError> {
+    if columns.len() == ids.len() && columns != ids {
+        let mut a: Vec<&String> = columns.iter().collect();
+        let mut b: Vec<&String> = ids.iter().collect();
+        a.sort();
+        b.sort();
+        if a == b {
+            return Err(SourceError::Malformed {
+                what: what.to_string(),
+                format: "csv",
+                detail: format!(
+                    "expected the channel columns in sensors.csv order {ids:?}, got {columns:?}"
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Wraps a source so that its channels carry the given names (same count, checked by caller).
