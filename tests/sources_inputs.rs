@@ -239,3 +239,59 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
+    let dir = tmpdir("scale");
+    std::fs::write(dir.join("sensors.csv"), "id,x,y\nA,0,0\nB,1,1\n").unwrap();
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: 1000,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(dir.join("responses.wav"), spec).unwrap();
+    for c in [100i16, -200, 16384, -32768] {
+        w.write_sample(c).unwrap();
+    }
+    w.finalize().unwrap();
+    // Without meta.json: scaled to [-1, 1).
+    let mut set = open_recording_set(&dir).unwrap();
+    assert_eq!(set.meta, RecordingMeta::default());
+    let (got, _) = drain(set.source.as_mut(), 10);
+    assert_eq!(
+        got,
+        [vec![100.0 / 32768.0, 0.5], vec![-200.0 / 32768.0, -1.0]]
+    );
+    // With "scale": physical units per count; unknown keys ignored.
+    std::fs::write(
+        dir.join("meta.json"),
+        r#"{"scale": 0.001, "kind": "free_decay", "x": [1]}"#,
+    )
+    .unwrap();
+    let mut set = open_recording_set(&dir).unwrap();
+    assert_eq!(set.meta.kind, DecayKind::FreeDecay);
+    let (got, _) = drain(set.source.as_mut(), 10);
+    assert_eq!(got, [vec![0.1, 16.384], vec![-0.2, -32.768]]);
+    // CSV columns holding the sensor ids in another order would mislabel data: refused.
+    std::fs::remove_file(dir.join("responses.wav")).unwrap();
+    std::fs::write(dir.join("responses.csv"), "time,B,A\n0,1,2\n0.001,3,4\n").unwrap();
+    assert!(matches!(
+        open_recording_set(&dir),
+        Err(SourceError::Malformed { .. })
+    ));
+    std::fs::write(dir.join("responses.csv"), "time,A,B\n0,1,2\n0.001,3,4\n").unwrap();
+    let mut set = open_recording_set(&dir).unwrap();
+    assert!((set.source.info().sample_rate_hz - 1000.0).abs() < 1e-9);
+    assert_eq!(
+        drain(set.source.as_mut(), 10).0,
+        [vec![1.0, 3.0], vec![2.0, 4.0]]
+    );
+    // Neither response file.
+    std::fs::remove_file(dir.join("responses.csv")).unwrap();
+    assert!(matches!(
+        open_recording_set(&dir),
+        Err(SourceError::Setting { .. })
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
