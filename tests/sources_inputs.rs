@@ -295,3 +295,23 @@ fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
     ));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The measured reference RIRs (PCM16, 44.1 and 96 kHz) stream to exactly hound's samples / 2^15.
+#[test]
+fn reference_pcm16_wavs_match_hound() {
+    for name in ["living_room_1.wav", "ir_sportscentre_omni.wav"] {
+        let path = format!("/work/shared/reference/rir/{name}");
+        let mut h = hound::WavReader::open(&path).unwrap();
+        let spec = h.spec();
+        let want: Vec<f64> = h
+            .samples::<i16>()
+            .map(|s| f64::from(s.unwrap()) / 32768.0)
+            .collect();
+        let mut o = open_input(&path, &InputOptions::default()).unwrap();
+        assert_eq!(o.source.info().sample_rate_hz, f64::from(spec.sample_rate));
+        assert_eq!(o.source.info().channels(), usize::from(spec.channels));
+        let (got, err) = drain(o.source.as_mut(), 4096);
+        assert!(err.is_none(), "{name}: {err:?}");
+        assert_eq!(got[0], want, "{name}");
+    }
+}
