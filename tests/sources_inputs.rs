@@ -315,3 +315,43 @@ fn reference_pcm16_wavs_match_hound() {
         assert_eq!(got[0], want, "{name}");
     }
 }
+
+fn small_wav() -> Vec<u8> {
+    let mut wav = Vec::new();
+    write_wav_f32(
+        &mut wav,
+        4000,
+        &[vec![0.5, -1.0, 2.0], vec![1.0, 0.0, -3.0]],
+    )
+    .unwrap();
+    wav
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+    /// A valid WAV or CSV with random bytes overwritten and a random cut: samples or a typed
+    /// error, never a panic, whatever the block size.
+    #[test]
+    fn mutated_inputs_never_panic(
+        csv in any::<bool>(),
+        edits in prop::collection::vec((0usize..200, any::<u8>()), 0..6),
+        cut in 0usize..200,
+        block in 1usize..8,
+    ) {
+        let mut bytes = if csv {
+            b"# fs=100\ntime,a,b\n0,1,2\n0.01,3,4\n0.02,5,6\n".to_vec()
+        } else {
+            small_wav()
+        };
+        for (pos, val) in edits {
+            if let Some(b) = bytes.get_mut(pos) {
+                *b = val;
+            }
+        }
+        bytes.truncate(cut.min(bytes.len()));
+        if let Ok(mut s) = open_stream(Cursor::new(bytes), "stdin", &InputOptions::default()) {
+            let (got, _) = drain(s.as_mut(), block);
+            prop_assert!(got.iter().all(|c| c.len() == got[0].len()));
+        }
+    }
+}
