@@ -38,12 +38,17 @@ pub enum ReducedSolve {
 }
 
 /// Which residual vectors enrich the modal basis.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BasisOptions {
     /// Add the static residual K₀⁻¹ f.
     pub static_residual: bool,
     /// Add K₀⁻¹ K_r K₀⁻¹ f for every stiffness region r (only when there are several regions).
     pub region_residuals: bool,
+    /// For every viscoelastic (SLS) region r, add K₀⁻¹ K_r φ_i for the modes below this
+    /// frequency, Hz: the static part of how the region's frequency-dependent stiffness changes
+    /// those mode shapes (first-order perturbation through the truncated modes). A large SLS
+    /// stiffness change is not representable by the reference-modulus modes alone.
+    pub sls_mode_residuals_below_hz: f64,
 }
 
 impl Default for BasisOptions {
@@ -51,6 +56,7 @@ impl Default for BasisOptions {
         Self {
             static_residual: true,
             region_residuals: true,
+            sls_mode_residuals_below_hz: f64::INFINITY,
         }
     }
 }
@@ -230,7 +236,8 @@ impl ReducedModel {
         let n = sys.n_free;
         let m_phi = spmm(&sys.mass, shapes);
         let mut cand = Vec::new();
-        if opts.static_residual || opts.region_residuals {
+        let has_sls = sys.stiffness_terms.iter().any(|t| t.sls.is_some());
+        if opts.static_residual || opts.region_residuals || has_sls {
             let llt = static_solver(sys)?;
             let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
             let r0 = llt.solve(f.as_ref());
@@ -242,6 +249,19 @@ impl ReducedModel {
                     let kr = spmm(&t.matrix, r0.as_ref());
                     let v = llt.solve(kr.as_ref());
                     cand.push(v.col(0).iter().copied().collect());
+                }
+            }
+            let sel: Vec<usize> = (0..shapes.ncols())
+                .filter(|&i| frequencies_hz[i] <= opts.sls_mode_residuals_below_hz)
+                .collect();
+            for t in sys.stiffness_terms.iter().filter(|t| t.sls.is_some()) {
+                if sel.is_empty() {
+                    break;
+                }
+                let phi = Mat::from_fn(n, sel.len(), |i, j| shapes[(i, sel[j])]);
+                let v = llt.solve(spmm(&t.matrix, phi.as_ref()).as_ref());
+                for j in 0..sel.len() {
+                    cand.push(v.col(j).iter().copied().collect());
                 }
             }
         }
