@@ -1,1 +1,2 @@
 //! The `dampscope` command line.
+pub mod synth;
