@@ -9,6 +9,7 @@ pub mod impulse;
 pub mod mesh;
 pub mod model;
 pub mod reduced;
+pub mod simulate;
 pub mod system;
 pub mod truncation;
 
