@@ -4,6 +4,7 @@
 pub mod analyze;
 pub mod bands_arg;
 pub mod demo;
+pub mod simulate;
 pub mod synth;
 
 use clap::{Parser, Subcommand};
