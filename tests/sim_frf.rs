@@ -271,7 +271,7 @@ fn fast_vs_direct(patch: Patch) -> (f64, f64, f64) {
         BasisOptions {
             static_residual: false,
             region_residuals: false,
-            sls_mode_residuals_below_hz: -1.0,
+            mode_residuals_below_hz: -1.0,
         },
     )
     .unwrap();

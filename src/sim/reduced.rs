@@ -42,13 +42,14 @@ pub enum ReducedSolve {
 pub struct BasisOptions {
     /// Add the static residual K₀⁻¹ f.
     pub static_residual: bool,
-    /// Add K₀⁻¹ K_r K₀⁻¹ f for every stiffness region r (only when there are several regions).
+    /// Add K₀⁻¹ K_r K₀⁻¹ f for every perturbing region r (see [`perturbing_regions`]).
     pub region_residuals: bool,
-    /// For every viscoelastic (SLS) region r, add K₀⁻¹ K_r φ_i for the modes below this
-    /// frequency, Hz: the static part of how the region's frequency-dependent stiffness changes
-    /// those mode shapes (first-order perturbation through the truncated modes). A large SLS
-    /// stiffness change is not representable by the reference-modulus modes alone.
-    pub sls_mode_residuals_below_hz: f64,
+    /// For every perturbing region r, add K₀⁻¹ K_r φ_i for the modes below this frequency, Hz:
+    /// the static part of how the region's different (complex, possibly frequency-dependent)
+    /// stiffness factor changes those mode shapes — first-order perturbation through the
+    /// truncated modes. Without them a damped or viscoelastic patch couples the kept modes to
+    /// truncated ones that the basis cannot represent.
+    pub mode_residuals_below_hz: f64,
 }
 
 impl Default for BasisOptions {
@@ -56,7 +57,7 @@ impl Default for BasisOptions {
         Self {
             static_residual: true,
             region_residuals: true,
-            sls_mode_residuals_below_hz: f64::INFINITY,
+            mode_residuals_below_hz: f64::INFINITY,
         }
     }
 }
@@ -83,6 +84,21 @@ pub fn validate_modes(
         }
     }
     Ok(())
+}
+
+/// The regions that perturb the first one: with K(ω) = s₁(ω) K₀ + Σ_{r≥2} (s_r − s₁) K_r, a
+/// region with the same loss factor as region 0 and no SLS (while region 0 has none either)
+/// contributes nothing, and region 0 itself is redundant (K₀⁻¹ K₀ x = x).
+pub fn perturbing_regions(sys: &FeSystem) -> Vec<usize> {
+    let Some(first) = sys.stiffness_terms.first() else {
+        return Vec::new();
+    };
+    (1..sys.stiffness_terms.len())
+        .filter(|&r| {
+            let t = &sys.stiffness_terms[r];
+            t.sls.is_some() || first.sls.is_some() || t.loss_factor != first.loss_factor
+        })
+        .collect()
 }
 
 /// Sum of every stiffness term, K₀ (each region at its reference modulus).
@@ -236,32 +252,29 @@ impl ReducedModel {
         let n = sys.n_free;
         let m_phi = spmm(&sys.mass, shapes);
         let mut cand = Vec::new();
-        let has_sls = sys.stiffness_terms.iter().any(|t| t.sls.is_some());
-        if opts.static_residual || opts.region_residuals || has_sls {
+        let regions = perturbing_regions(sys);
+        if opts.static_residual || !regions.is_empty() {
             let llt = static_solver(sys)?;
             let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
             let r0 = llt.solve(f.as_ref());
             if opts.static_residual {
                 cand.push(r0.col(0).iter().copied().collect::<Vec<f64>>());
             }
-            if opts.region_residuals && sys.stiffness_terms.len() > 1 {
-                for t in &sys.stiffness_terms {
-                    let kr = spmm(&t.matrix, r0.as_ref());
-                    let v = llt.solve(kr.as_ref());
+            let sel: Vec<usize> = (0..shapes.ncols())
+                .filter(|&i| frequencies_hz[i] <= opts.mode_residuals_below_hz)
+                .collect();
+            for &r in &regions {
+                let t = &sys.stiffness_terms[r];
+                if opts.region_residuals {
+                    let v = llt.solve(spmm(&t.matrix, r0.as_ref()).as_ref());
                     cand.push(v.col(0).iter().copied().collect());
                 }
-            }
-            let sel: Vec<usize> = (0..shapes.ncols())
-                .filter(|&i| frequencies_hz[i] <= opts.sls_mode_residuals_below_hz)
-                .collect();
-            for t in sys.stiffness_terms.iter().filter(|t| t.sls.is_some()) {
-                if sel.is_empty() {
-                    break;
-                }
-                let phi = Mat::from_fn(n, sel.len(), |i, j| shapes[(i, sel[j])]);
-                let v = llt.solve(spmm(&t.matrix, phi.as_ref()).as_ref());
-                for j in 0..sel.len() {
-                    cand.push(v.col(j).iter().copied().collect());
+                if !sel.is_empty() {
+                    let phi = Mat::from_fn(n, sel.len(), |i, j| shapes[(i, sel[j])]);
+                    let v = llt.solve(spmm(&t.matrix, phi.as_ref()).as_ref());
+                    for j in 0..sel.len() {
+                        cand.push(v.col(j).iter().copied().collect());
+                    }
                 }
             }
         }

@@ -202,7 +202,7 @@ pub fn simulate_system(
                 &m.frequencies_hz,
                 m.shapes.as_ref(),
                 BasisOptions {
-                    sls_mode_residuals_below_hz: fmax_hz,
+                    mode_residuals_below_hz: fmax_hz,
                     ..BasisOptions::default()
                 },
             )?;
