@@ -129,49 +129,55 @@ fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
 
 /// M-orthonormalises the columns of `cand` against `basis` (already M-orthonormal, with
 /// `m_basis` = M × basis) and among themselves; drops columns that are numerically dependent.
+///
+/// Block form, all GEMMs: twice { C ← C − basis (m_basisᵀ C); SVQB: G = Cᵀ M C = U Λ Uᵀ,
+/// C ← C U Λ^{−1/2} over the eigenvalues above 1e-14 }, the columns scaled to unit M-norm
+/// first so that the threshold is relative to each candidate's size: "twice is enough".
 fn m_orthonormalise(
     mass: &SparseColMat<usize, f64>,
     basis: MatRef<'_, f64>,
     m_basis: MatRef<'_, f64>,
     cand: Vec<Vec<f64>>,
-) -> Vec<Vec<f64>> {
+) -> Result<Vec<Vec<f64>>, FrfError> {
     let n = basis.nrows();
-    let mut kept: Vec<(Vec<f64>, Vec<f64>)> = Vec::new(); // (vector, M vector)
-    let mvec = |v: &[f64]| -> Vec<f64> {
-        let x = Mat::from_fn(n, 1, |i, _| v[i]);
-        spmm(mass, x.as_ref()).col(0).iter().copied().collect()
-    };
-    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-    for mut v in cand {
-        let norm0 = dot(&v, &mvec(&v)).max(0.0).sqrt();
-        if norm0 == 0.0 || !norm0.is_finite() {
-            continue;
-        }
-        // Two passes of classical Gram–Schmidt ("twice is enough").
-        for _ in 0..2 {
-            for c in 0..basis.ncols() {
-                let p = (0..n).map(|i| m_basis[(i, c)] * v[i]).sum::<f64>();
-                for (i, vi) in v.iter_mut().enumerate() {
-                    *vi -= p * basis[(i, c)];
-                }
+    if cand.is_empty() {
+        return Ok(Vec::new());
+    }
+    // scale each candidate to unit M-norm first so that the dependence threshold is relative
+    let mut c = Mat::from_fn(n, cand.len(), |i, j| cand[j][i]);
+    for pass in 0..2 {
+        let mc = spmm(mass, c.as_ref());
+        for j in 0..c.ncols() {
+            if pass > 0 {
+                break;
             }
-            for (w, mw) in &kept {
-                let p = dot(mw, &v);
-                for (vi, wi) in v.iter_mut().zip(w) {
-                    *vi -= p * wi;
-                }
+            let nrm = (0..n).map(|i| c[(i, j)] * mc[(i, j)]).sum::<f64>().max(0.0).sqrt();
+            let inv = if nrm > 0.0 && nrm.is_finite() { 1.0 / nrm } else { 0.0 };
+            for i in 0..n {
+                c[(i, j)] *= inv;
             }
         }
-        let mv = mvec(&v);
-        let norm = dot(&v, &mv).max(0.0).sqrt();
-        if norm > 1e-8 * norm0 {
-            kept.push((
-                v.iter().map(|x| x / norm).collect(),
-                mv.iter().map(|x| x / norm).collect(),
-            ));
+        let p = m_basis.transpose() * &c;
+        c -= basis * &p;
+        let mc = spmm(mass, c.as_ref());
+        let g = c.transpose() * &mc;
+        let evd = g
+            .self_adjoint_eigen(Side::Lower)
+            .map_err(|e| FrfError::Factorisation {
+                what: "Gram matrix of the residual vectors".into(),
+                message: format!("{e:?}"),
+            })?;
+        let lam: Vec<f64> = evd.S().column_vector().iter().copied().collect();
+        // columns had unit M-norm before the projection: an absolute threshold is relative
+        let keep: Vec<usize> = (0..lam.len()).filter(|&k| lam[k] > 1e-14).collect();
+        let u = evd.U();
+        let w = Mat::from_fn(c.ncols(), keep.len(), |i, k| u[(i, keep[k])] / lam[keep[k]].sqrt());
+        c = &c * &w;
+        if c.ncols() == 0 {
+            break;
         }
     }
-    kept.into_iter().map(|(v, _)| v).collect()
+    Ok((0..c.ncols()).map(|j| c.col(j).iter().copied().collect()).collect())
 }
 
 /// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted
@@ -278,7 +284,7 @@ impl ReducedModel {
                 }
             }
         }
-        let extra = m_orthonormalise(&sys.mass, shapes, m_phi.as_ref(), cand);
+        let extra = m_orthonormalise(&sys.mass, shapes, m_phi.as_ref(), cand)?;
         let m = shapes.ncols() + extra.len();
         let v = Mat::from_fn(n, m, |i, j| {
             if j < shapes.ncols() {
