@@ -2,7 +2,7 @@
 
 mod sim_frf_support;
 
-use dampscope::sim::frf::{band_error, direct_frf, Frf, FreqBand, FrfError};
+use dampscope::sim::frf::{band_error, direct_frf, FreqBand, Frf, FrfError};
 use dampscope::sim::reduced::{BasisOptions, ReducedModel, ReducedSolve};
 use dampscope::sim::system::{FeSystem, SensorWeights, Sls, StiffnessTerm};
 use dampscope::sim::truncation::{mode_columns, truncated_frf, ModalDamping};
@@ -121,8 +121,18 @@ fn bad_inputs_are_typed_errors() {
 #[test]
 fn band_error_is_eq_4_8() {
     let freqs = [0.0, 10.0, 20.0, 30.0];
-    let r = [c64::new(1.0, 0.0), c64::new(0.0, 2.0), c64::new(3.0, 4.0), c64::new(9.0, 9.0)];
-    let e = [c64::new(1.1, 0.0), c64::new(0.0, 2.0), c64::new(3.0, 3.0), c64::new(0.0, 0.0)];
+    let r = [
+        c64::new(1.0, 0.0),
+        c64::new(0.0, 2.0),
+        c64::new(3.0, 4.0),
+        c64::new(9.0, 9.0),
+    ];
+    let e = [
+        c64::new(1.1, 0.0),
+        c64::new(0.0, 2.0),
+        c64::new(3.0, 3.0),
+        c64::new(0.0, 0.0),
+    ];
     let band = FreqBand {
         lo_hz: 0.0,
         hi_hz: 20.0,
@@ -197,9 +207,20 @@ fn all_modes_truncation_equals_direct_for_homogeneous_damping() {
     let all: Vec<usize> = (1..=fm.len()).collect();
     let freqs = grid(2.5, 600.0);
     let reference = direct_frf(&sys, &freqs).unwrap();
-    let t = truncated_frf(&sys, &fm, shapes.as_ref(), &all, &ModalDamping::StrainEnergy, &freqs)
-        .unwrap();
-    assert!(max_rel(&t, &reference) < 1e-8, "{}", max_rel(&t, &reference));
+    let t = truncated_frf(
+        &sys,
+        &fm,
+        shapes.as_ref(),
+        &all,
+        &ModalDamping::StrainEnergy,
+        &freqs,
+    )
+    .unwrap();
+    assert!(
+        max_rel(&t, &reference) < 1e-8,
+        "{}",
+        max_rel(&t, &reference)
+    );
     // the same with given modal ratios D_i = g/2 (eqs. 4.6–4.7)
     let d = ModalDamping::Ratios(vec![0.025; fm.len()]);
     let t2 = truncated_frf(&sys, &fm, shapes.as_ref(), &all, &d, &freqs).unwrap();
@@ -222,9 +243,16 @@ fn full_basis_reduction_equals_direct_with_sls_and_rayleigh() {
     let freqs = grid(5.0, 800.0);
     let reference = direct_frf(&sys, &freqs).unwrap();
     let red = ReducedModel::build(&sys, &fm, shapes.as_ref(), BasisOptions::default()).unwrap();
-    assert_eq!(red.size, sys.n_free, "residual vectors must be dropped as dependent");
+    assert_eq!(
+        red.size, sys.n_free,
+        "residual vectors must be dropped as dependent"
+    );
     let got = red.frf(&freqs, ReducedSolve::Auto).unwrap();
-    assert!(max_rel(&got, &reference) < 1e-8, "{}", max_rel(&got, &reference));
+    assert!(
+        max_rel(&got, &reference) < 1e-8,
+        "{}",
+        max_rel(&got, &reference)
+    );
 }
 
 /// Largest per-band (50 Hz) error of eq. 4.8 over 0–500 Hz at both sensors.

@@ -38,11 +38,18 @@ fn sdof_accelerance_gives_the_analytic_impulse_response() {
     for (i, hi) in h.iter().enumerate().take(h.len() / 2).skip(1) {
         worst = worst.max((hi - analytic(i as f64 * dt)).abs());
     }
-    eprintln!("max |h − h_analytic| = {:.3e} of the envelope {amp:.3e}", worst);
+    eprintln!(
+        "max |h − h_analytic| = {:.3e} of the envelope {amp:.3e}",
+        worst
+    );
     assert!(worst < 5e-3 * amp, "worst {worst} vs envelope {amp}");
     // the mass line 1/m over the whole band is a discrete delta of weight 1/m: h[0] ≈ 2 fmax/m
     let want0 = 2.0 * fmax / m;
-    assert!((h[0] - want0).abs() < 0.01 * want0, "h[0] = {} vs {want0}", h[0]);
+    assert!(
+        (h[0] - want0).abs() < 0.01 * want0,
+        "h[0] = {} vs {want0}",
+        h[0]
+    );
     // energy of the response decays at the analytic rate: compare 0.5 s windows 1 s apart
     let energy = |t0: f64| -> f64 {
         let a = (t0 / dt) as usize;
@@ -50,7 +57,10 @@ fn sdof_accelerance_gives_the_analytic_impulse_response() {
     };
     let ratio_db = 10.0 * (energy(0.5) / energy(1.5)).log10();
     let want_db = 10.0 * (2.0 * zeta * wn).exp().log10();
-    assert!((ratio_db - want_db).abs() < 0.05, "{ratio_db} vs {want_db} dB");
+    assert!(
+        (ratio_db - want_db).abs() < 0.05,
+        "{ratio_db} vs {want_db} dB"
+    );
 }
 
 #[test]

@@ -50,7 +50,10 @@ fn fast_vs_direct(model: &Model) -> f64 {
             .position(|s| (s.x_m - x).abs() < 1e-9 && (s.y_m - y).abs() < 1e-9)
             .unwrap()
     };
-    let picks = [("driving point", find(0.5, 0.75)), ("off-patch", find(1.5, 0.75))];
+    let picks = [
+        ("driving point", find(0.5, 0.75)),
+        ("off-patch", find(1.5, 0.75)),
+    ];
     let (fmax, df) = (model.output.fmax, model.output.df);
     let direct = Method::Direct;
     let opts = |method| SimulateOptions {
@@ -126,7 +129,10 @@ fn single_mode_impulse_response_decays_with_half_the_loss_factor() {
         ..SimulateOptions::default()
     };
     let r = simulate(&m, &opts).unwrap();
-    assert_eq!(r.impulse_responses[0].len(), (2.0 * 1000.0 / 0.125) as usize);
+    assert_eq!(
+        r.impulse_responses[0].len(),
+        (2.0 * 1000.0 / 0.125) as usize
+    );
     // a sensor off the pinned edges with the largest response
     let (k, h) = r
         .impulse_responses
@@ -163,5 +169,8 @@ fn single_mode_impulse_response_decays_with_half_the_loss_factor() {
     let fit = fit_line(&tt, &ll).unwrap();
     let d = damping_ratio(fit.t60_s().unwrap(), f7);
     eprintln!("mode 7 at {f7} Hz: D = {:.4} %", 100.0 * d);
-    assert!((d - 0.025).abs() < 0.02 * 0.025, "D = {d}, expected 0.025 within 2 %");
+    assert!(
+        (d - 0.025).abs() < 0.02 * 0.025,
+        "D = {d}, expected 0.025 within 2 %"
+    );
 }

@@ -29,7 +29,12 @@ pub struct SimulateArgs {
     #[arg(long, value_name = "PATH")]
     pub model: Option<PathBuf>,
     /// Write a recording set to this directory.
-    #[arg(long, value_name = "DIR", conflicts_with = "stdout", required_unless_present = "stdout")]
+    #[arg(
+        long,
+        value_name = "DIR",
+        conflicts_with = "stdout",
+        required_unless_present = "stdout"
+    )]
     pub out: Option<PathBuf>,
     /// Stream the responses as a 32-bit float WAV on standard output.
     #[arg(long)]
@@ -42,7 +47,12 @@ pub struct SimulateArgs {
     pub keep_modes: Option<Vec<usize>>,
     /// With --keep-modes: given modal damping ratios D_i (comma separated, one per kept mode)
     /// instead of the modal strain energy loss factors.
-    #[arg(long, value_name = "D,D,…", value_delimiter = ',', requires = "keep_modes")]
+    #[arg(
+        long,
+        value_name = "D,D,…",
+        value_delimiter = ',',
+        requires = "keep_modes"
+    )]
     pub modal_damping: Option<Vec<f64>>,
     /// Add white Gaussian noise at this peak SNR per channel, dB.
     #[arg(long = "snr-db", value_name = "DB")]

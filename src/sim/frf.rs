@@ -77,7 +77,11 @@ impl Frf {
 
     /// Receptance of one sensor over all frequencies, m/N.
     pub fn receptance(&self, sensor: usize) -> Vec<c64> {
-        self.receptance_m_per_n.col(sensor).iter().copied().collect()
+        self.receptance_m_per_n
+            .col(sensor)
+            .iter()
+            .copied()
+            .collect()
     }
 
     /// Accelerance of one sensor, (m/s²)/N = −ω² × receptance: the sensors measure
@@ -110,13 +114,19 @@ pub fn validate_system(sys: &FeSystem) -> Result<(), FrfError> {
             });
         }
         if m.val().iter().any(|v| !v.is_finite()) {
-            return Err(invalid(what, "expected finite entries, got NaN or infinity"));
+            return Err(invalid(
+                what,
+                "expected finite entries, got NaN or infinity",
+            ));
         }
         Ok(())
     };
     square("mass matrix", &sys.mass)?;
     if sys.stiffness_terms.is_empty() {
-        return Err(invalid("stiffness terms", "expected at least one, got none"));
+        return Err(invalid(
+            "stiffness terms",
+            "expected at least one, got none",
+        ));
     }
     for t in &sys.stiffness_terms {
         square(&format!("stiffness term '{}'", t.name), &t.matrix)?;
@@ -232,16 +242,20 @@ impl<'a> DirectSolver<'a> {
         for t in &sys.stiffness_terms {
             push(&t.matrix);
         }
-        let union = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip).map_err(|e| {
-            FrfError::Factorisation {
+        let union =
+            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip).map_err(|e| {
+                FrfError::Factorisation {
+                    what: "union sparsity pattern".into(),
+                    message: format!("{e:?}"),
+                }
+            })?;
+        let pattern = union
+            .symbolic()
+            .to_owned()
+            .map_err(|e| FrfError::Factorisation {
                 what: "union sparsity pattern".into(),
                 message: format!("{e:?}"),
-            }
-        })?;
-        let pattern = union.symbolic().to_owned().map_err(|e| FrfError::Factorisation {
-            what: "union sparsity pattern".into(),
-            message: format!("{e:?}"),
-        })?;
+            })?;
         let mass_map = entry_map(&pattern, &sys.mass);
         let term_maps = sys
             .stiffness_terms

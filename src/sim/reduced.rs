@@ -151,8 +151,16 @@ fn m_orthonormalise(
             if pass > 0 {
                 break;
             }
-            let nrm = (0..n).map(|i| c[(i, j)] * mc[(i, j)]).sum::<f64>().max(0.0).sqrt();
-            let inv = if nrm > 0.0 && nrm.is_finite() { 1.0 / nrm } else { 0.0 };
+            let nrm = (0..n)
+                .map(|i| c[(i, j)] * mc[(i, j)])
+                .sum::<f64>()
+                .max(0.0)
+                .sqrt();
+            let inv = if nrm > 0.0 && nrm.is_finite() {
+                1.0 / nrm
+            } else {
+                0.0
+            };
             for i in 0..n {
                 c[(i, j)] *= inv;
             }
@@ -171,13 +179,17 @@ fn m_orthonormalise(
         // columns had unit M-norm before the projection: an absolute threshold is relative
         let keep: Vec<usize> = (0..lam.len()).filter(|&k| lam[k] > 1e-14).collect();
         let u = evd.U();
-        let w = Mat::from_fn(c.ncols(), keep.len(), |i, k| u[(i, keep[k])] / lam[keep[k]].sqrt());
+        let w = Mat::from_fn(c.ncols(), keep.len(), |i, k| {
+            u[(i, keep[k])] / lam[keep[k]].sqrt()
+        });
         c = &c * &w;
         if c.ncols() == 0 {
             break;
         }
     }
-    Ok((0..c.ncols()).map(|j| c.col(j).iter().copied().collect()).collect())
+    Ok((0..c.ncols())
+        .map(|j| c.col(j).iter().copied().collect())
+        .collect())
 }
 
 /// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted
@@ -447,7 +459,8 @@ impl ReducedModel {
             yres = yres.max((back[(i, 0)] - lb[(i, 0)]).norm());
             ynorm = ynorm.max(lb[(i, 0)].norm());
         }
-        if !(res <= 1e-9 * scale) || !(yres <= 1e-9 * ynorm) {
+        let trusted = res <= 1e-9 * scale && yres <= 1e-9 * ynorm; // false for NaN too
+        if !trusted {
             return Ok(None);
         }
         // P = (S V) L⁻ᵀ X  (n_sensors × m)

@@ -118,10 +118,12 @@ pub fn frequency_grid(fmax_hz: f64, df_hz: f64) -> Result<Vec<f64>, SimError> {
     }
     let steps = fmax_hz / df_hz;
     let n = steps.round();
-    if (steps - n).abs() > 1e-6 * steps.max(1.0) || n < 1.0 || n > 1e8 {
+    if (steps - n).abs() > 1e-6 * steps.max(1.0) || !(1.0..=1e8).contains(&n) {
         return Err(SimError::InvalidValue {
             key: "output.df".into(),
-            message: format!("expected fmax/df to be a whole number ≥ 1, got {fmax_hz}/{df_hz} = {steps}"),
+            message: format!(
+                "expected fmax/df to be a whole number ≥ 1, got {fmax_hz}/{df_hz} = {steps}"
+            ),
         });
     }
     let n = n as usize;
@@ -193,7 +195,9 @@ pub fn simulate_system(
                 ModeRequest::BelowHz(opts.mode_cutoff_factor * fmax_hz),
                 &mut timings,
             )?;
-            let m = modes.or(owned.as_ref()).ok_or_else(|| SimError::Eigen("no modes".into()))?;
+            let m = modes
+                .or(owned.as_ref())
+                .ok_or_else(|| SimError::Eigen("no modes".into()))?;
             pb.inc(1);
             pb.set_message("reduction");
             let t = Instant::now();
@@ -217,7 +221,9 @@ pub fn simulate_system(
         Method::Truncated(keep) => {
             let highest = keep.iter().copied().max().unwrap_or(0);
             get_modes(ModeRequest::Count(highest.max(1)), &mut timings)?;
-            let m = modes.or(owned.as_ref()).ok_or_else(|| SimError::Eigen("no modes".into()))?;
+            let m = modes
+                .or(owned.as_ref())
+                .ok_or_else(|| SimError::Eigen("no modes".into()))?;
             pb.inc(2);
             pb.set_message("truncated FRF");
             let t = Instant::now();

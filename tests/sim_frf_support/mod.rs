@@ -152,10 +152,7 @@ pub fn dense_modes(sys: &FeSystem) -> (Vec<f64>, Mat<f64>) {
 
 /// The first `count` columns / frequencies of a mode set.
 pub fn first_modes(freqs: &[f64], shapes: &Mat<f64>, count: usize) -> (Vec<f64>, Mat<f64>) {
-    (
-        freqs[..count].to_vec(),
-        shapes.subcols(0, count).to_owned(),
-    )
+    (freqs[..count].to_vec(), shapes.subcols(0, count).to_owned())
 }
 
 /// 0, df, …, fmax.
