@@ -1,5 +1,17 @@
 //! The finite-element plate simulator (8-node hexahedra), one more source of decays.
 
+pub mod assembly;
+pub mod eigen;
+pub mod element;
+pub mod error;
+pub mod frf;
+pub mod impulse;
+pub mod mesh;
+pub mod model;
+pub mod reduced;
+pub mod simulate;
 pub mod system;
+pub mod truncation;
 
+pub use error::SimError;
 pub use system::{FeSystem, Sls, StiffnessTerm};

@@ -1,0 +1,177 @@
+//! `dampscope simulate`: impulse responses of the finite-element plate, as a recording set
+//! (FORMATS.md §1) or a 32-bit float WAV on standard output for `dampscope analyze -`.
+
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+
+use crate::sim::model::Model;
+use crate::sim::simulate::{simulate, Method, SimulateOptions, SimulationResult};
+use crate::source::recording_set::{
+    write_recording_set, DecayKind, Excitation, RecordingMeta, Sensor,
+};
+use crate::source::write_wav_f32;
+
+/// FRF method on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Sparse complex solve per frequency (slow reference).
+    Direct,
+    /// Modal projection with residual vectors and exact regional damping.
+    Fast,
+}
+
+/// Arguments of `dampscope simulate`.
+#[derive(Clone, Debug, clap::Args)]
+pub struct SimulateArgs {
+    /// Plate model (TOML, FORMATS.md §3); default: the report's reference plate.
+    #[arg(long, value_name = "PATH")]
+    pub model: Option<PathBuf>,
+    /// Write a recording set to this directory.
+    #[arg(
+        long,
+        value_name = "DIR",
+        conflicts_with = "stdout",
+        required_unless_present = "stdout"
+    )]
+    pub out: Option<PathBuf>,
+    /// Stream the responses as a 32-bit float WAV on standard output.
+    #[arg(long)]
+    pub stdout: bool,
+    /// FRF method.
+    #[arg(long, value_enum, default_value_t = MethodArg::Fast)]
+    pub method: MethodArg,
+    /// Keep only these modes (1-based, comma separated, e.g. 7,8): modal truncation.
+    #[arg(long, value_name = "N,N,…", value_delimiter = ',')]
+    pub keep_modes: Option<Vec<usize>>,
+    /// With --keep-modes: given modal damping ratios D_i (comma separated, one per kept mode)
+    /// instead of the modal strain energy loss factors.
+    #[arg(
+        long,
+        value_name = "D,D,…",
+        value_delimiter = ',',
+        requires = "keep_modes"
+    )]
+    pub modal_damping: Option<Vec<f64>>,
+    /// Add white Gaussian noise at this peak SNR per channel, dB.
+    #[arg(long = "snr-db", value_name = "DB")]
+    pub snr_db: Option<f64>,
+    /// Seed of the noise.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print phase times on stderr.
+    #[arg(long)]
+    pub timings: bool,
+}
+
+impl SimulateArgs {
+    /// The simulation options these arguments ask for.
+    pub fn options(&self) -> SimulateOptions {
+        let method = match (&self.keep_modes, self.method) {
+            (Some(k), _) => Method::Truncated(k.clone()),
+            (None, MethodArg::Direct) => Method::Direct,
+            (None, MethodArg::Fast) => Method::Fast,
+        };
+        SimulateOptions {
+            method,
+            modal_damping_ratios: self.modal_damping.clone(),
+            snr_db: self.snr_db,
+            seed: self.seed,
+            progress: true,
+            ..SimulateOptions::default()
+        }
+    }
+}
+
+fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
+    Ok(match path {
+        Some(p) => Model::load(p)?,
+        None => Model::reference_plate(),
+    })
+}
+
+/// The recording-set pieces of a result: sensors (z, mid-plane) and excitation rows.
+pub fn recording_parts(r: &SimulationResult) -> (Vec<Sensor>, Vec<Excitation>) {
+    let sensors = r
+        .sensors
+        .iter()
+        .map(|s| Sensor {
+            id: s.id.clone(),
+            x_m: s.x_m,
+            y_m: s.y_m,
+            z_m: None,
+            dir: "z".into(),
+        })
+        .collect();
+    let excitation = r
+        .excitation
+        .iter()
+        .map(|e| Excitation {
+            x_m: e.x,
+            y_m: e.y,
+            dir: e.dir.clone(),
+            force_n: e.force,
+        })
+        .collect();
+    (sensors, excitation)
+}
+
+/// The `meta.json` of a simulated set.
+pub fn meta(r: &SimulationResult, snr_db: Option<f64>) -> RecordingMeta {
+    RecordingMeta {
+        fs: Some(r.fs_hz),
+        kind: DecayKind::ImpulseResponse,
+        quantity: Some("acceleration".into()),
+        unit: Some("m/s^2 per N s".into()),
+        snr_db,
+        scale: None,
+    }
+}
+
+/// Runs `dampscope simulate`.
+pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
+    let model = load_model(args.model.as_deref())?;
+    let opts = args.options();
+    let r = simulate(&model, &opts).context("simulation")?;
+    if args.timings {
+        let t = &r.timings;
+        eprintln!(
+            "timings: assembly {:.2} s, modes {:.2} s ({} modes), reduction {:.2} s, FRF {:.2} s ({} frequencies × {} sensors), impulse responses {:.2} s",
+            t.assembly_s,
+            t.modes_s,
+            r.modes_used,
+            t.reduction_s,
+            t.frf_s,
+            r.frf.frequencies_hz.len(),
+            r.frf.n_sensors(),
+            t.impulse_s
+        );
+    }
+    if args.stdout {
+        let fs = r.fs_hz;
+        if fs.fract() != 0.0 || fs > f64::from(u32::MAX) {
+            bail!("a WAV header needs a whole number of Hz: fs = 2·fmax = {fs}");
+        }
+        let stdout = io::stdout();
+        let mut w = BufWriter::new(stdout.lock());
+        write_wav_f32(&mut w, fs as u32, &r.impulse_responses)
+            .context("writing the WAV to standard output")?;
+        w.flush().context("writing standard output")?;
+        return Ok(());
+    }
+    let Some(dir) = &args.out else {
+        bail!("give --out DIR or --stdout");
+    };
+    let (sensors, excitation) = recording_parts(&r);
+    write_recording_set(
+        dir,
+        &meta(&r, args.snr_db),
+        &sensors,
+        &excitation,
+        r.fs_hz,
+        &r.impulse_responses,
+    )
+    .with_context(|| format!("writing the recording set {}", dir.display()))?;
+    Ok(())
+}

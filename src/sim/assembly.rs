@@ -1,0 +1,276 @@
+//! Assembly of a [`Model`] into the [`FeSystem`] over the free dofs.
+//!
+//! - Constraints (FORMATS.md §3): a pinned edge fixes ux = uy = uz = 0 on the mid-plane line of
+//!   that edge (node layer k = nz/2). When nz is odd the mid-plane lies inside an element: then
+//!   uz = 0 on both bounding layers and ux = uy = 0 on the lower one (a line support without
+//!   rotational restraint).
+//! - One [`StiffnessTerm`] per region: "plate", then "patch p" for each patch that owns elements
+//!   (SLS patches assembled with `sls.e_inf`), then "edge spring <edge>" (z springs on the edge's
+//!   mid-plane line, consistent linear line integration, loss factor 0).
+//! - Mass: consistent element mass plus point masses, each added as m·w wᵀ in x, y and z with the
+//!   mid-plane interpolation weights w of its position (so a rigid translation carries m).
+//! - Force: the excitation's amplitude spread on the nodes by the same interpolation.
+//!
+//! All elements are equal boxes, so element matrices are computed once per region material.
+
+use faer::sparse::{SparseColMat, Triplet};
+
+use super::element::{elasticity, hex8_incompatible_stiffness, hex8_mass, Mat24};
+use super::error::SimError;
+use super::mesh::Mesh;
+use super::model::{Edge, Model};
+use super::system::{FeSystem, SensorWeights, StiffnessTerm};
+
+/// Map from global dof to free dof (`None` when constrained).
+#[derive(Clone, Debug)]
+pub struct DofMap {
+    /// `free[g]` = free index of global dof g.
+    pub free: Vec<Option<usize>>,
+    /// Number of free dofs.
+    pub n_free: usize,
+}
+
+impl DofMap {
+    /// Numbers the dofs that remain free after the model's pinned edges.
+    pub fn new(model: &Model, mesh: &Mesh) -> Result<DofMap, SimError> {
+        let mut fixed = vec![false; mesh.n_dofs()];
+        let layers = mesh.midplane_layers();
+        for edge in model.pinned_edges()? {
+            for (li, &(k, _)) in layers.iter().enumerate() {
+                for node in edge_nodes(mesh, edge, k) {
+                    fixed[3 * node + 2] = true;
+                    if li == 0 {
+                        fixed[3 * node] = true;
+                        fixed[3 * node + 1] = true;
+                    }
+                }
+            }
+        }
+        let mut n_free = 0;
+        let free = fixed
+            .iter()
+            .map(|&f| {
+                if f {
+                    None
+                } else {
+                    n_free += 1;
+                    Some(n_free - 1)
+                }
+            })
+            .collect();
+        Ok(DofMap { free, n_free })
+    }
+}
+
+/// The nodes of node layer k along an edge, in order along the edge.
+fn edge_nodes(mesh: &Mesh, edge: Edge, k: usize) -> Vec<usize> {
+    match edge {
+        Edge::X0 => (0..=mesh.ny).map(|j| mesh.node(0, j, k)).collect(),
+        Edge::X1 => (0..=mesh.ny).map(|j| mesh.node(mesh.nx, j, k)).collect(),
+        Edge::Y0 => (0..=mesh.nx).map(|i| mesh.node(i, 0, k)).collect(),
+        Edge::Y1 => (0..=mesh.nx).map(|i| mesh.node(i, mesh.ny, k)).collect(),
+    }
+}
+
+/// Builds a square sparse matrix from triplets (duplicates are summed); `what` names it.
+pub fn sparse_from_triplets(
+    n: usize,
+    triplets: &[Triplet<usize, usize, f64>],
+    what: &str,
+) -> Result<SparseColMat<usize, f64>, SimError> {
+    SparseColMat::try_new_from_triplets(n, n, triplets).map_err(|e| SimError::Linear {
+        what: what.to_string(),
+        message: format!("{e:?}"),
+    })
+}
+
+/// Scatters a 24 × 24 element matrix into triplets over the free dofs.
+fn scatter(
+    out: &mut Vec<Triplet<usize, usize, f64>>,
+    ke: &Mat24,
+    nodes: &[usize; 8],
+    map: &DofMap,
+) {
+    let mut dofs = [None; 24];
+    for (a, &n) in nodes.iter().enumerate() {
+        for c in 0..3 {
+            dofs[3 * a + c] = map.free[3 * n + c];
+        }
+    }
+    for (q, dq) in dofs.iter().enumerate() {
+        let Some(col) = *dq else { continue };
+        for (p, dp) in dofs.iter().enumerate() {
+            if let Some(row) = *dp {
+                out.push(Triplet::new(row, col, ke[(p, q)]));
+            }
+        }
+    }
+}
+
+/// Interpolation of a mid-plane point onto free dofs of component `c` (constrained dofs drop).
+fn point_dofs(mesh: &Mesh, map: &DofMap, x_m: f64, y_m: f64, c: usize) -> Vec<(usize, f64)> {
+    mesh.midplane_weights(x_m, y_m)
+        .into_iter()
+        .filter_map(|(node, w)| map.free[3 * node + c].map(|d| (d, w)))
+        .collect()
+}
+
+/// Assembles the model into an [`FeSystem`] over the free dofs.
+pub fn assemble(model: &Model) -> Result<FeSystem, SimError> {
+    model.validate()?;
+    let mesh = Mesh::new(model);
+    let map = DofMap::new(model, &mesh)?;
+    let n = map.n_free;
+    if n == 0 {
+        return Err(SimError::InvalidValue {
+            key: "supports.pinned_edges".into(),
+            message: "every dof is constrained".into(),
+        });
+    }
+    let coords = mesh.element_box();
+    let n_regions = 1 + model.patches.len();
+    let materials: Vec<_> = std::iter::once(model.material_of_plate())
+        .chain(model.patches.iter().map(|p| model.material_of_patch(p)))
+        .collect();
+    // Element matrices once per region (elements are equal boxes).
+    let mut kes = Vec::with_capacity(n_regions);
+    let mut mes = Vec::with_capacity(n_regions);
+    for (r, m) in materials.iter().enumerate() {
+        let first = mesh
+            .region_of_element
+            .iter()
+            .position(|&x| x == r)
+            .unwrap_or(0);
+        kes.push(hex8_incompatible_stiffness(
+            &coords,
+            &elasticity(m.youngs_modulus, m.poisson),
+            first,
+        )?);
+        mes.push(hex8_mass(&coords, m.density));
+    }
+    let mut k_trip: Vec<Vec<Triplet<usize, usize, f64>>> = vec![Vec::new(); n_regions];
+    let mut m_trip = Vec::with_capacity(mesh.n_elements() * 576);
+    for k in 0..mesh.nz {
+        for j in 0..mesh.ny {
+            for i in 0..mesh.nx {
+                let e = (k * mesh.ny + j) * mesh.nx + i;
+                let r = mesh.region_of_element[e];
+                let nodes = mesh.element_nodes(i, j, k);
+                scatter(&mut k_trip[r], &kes[r], &nodes, &map);
+                scatter(&mut m_trip, &mes[r], &nodes, &map);
+            }
+        }
+    }
+    // Point masses.
+    for pm in &model.point_masses {
+        for c in 0..3 {
+            let w = point_dofs(&mesh, &map, pm.x, pm.y, c);
+            for &(p, wp) in &w {
+                for &(q, wq) in &w {
+                    m_trip.push(Triplet::new(p, q, pm.mass * wp * wq));
+                }
+            }
+        }
+    }
+    let mass = sparse_from_triplets(n, &m_trip, "mass matrix")?;
+    drop(m_trip);
+    let mut terms = Vec::new();
+    for (r, trip) in k_trip.iter().enumerate() {
+        if trip.is_empty() {
+            continue;
+        }
+        let m = &materials[r];
+        let name = if r == 0 {
+            "plate".to_string()
+        } else {
+            format!("patch {}", r - 1)
+        };
+        terms.push(StiffnessTerm {
+            matrix: sparse_from_triplets(n, trip, &format!("stiffness of {name}"))?,
+            name,
+            loss_factor: m.loss_factor,
+            sls: m.sls,
+            reference_modulus_pa: m.youngs_modulus,
+        });
+    }
+    drop(k_trip);
+    for (s, spring) in model.edge_springs.iter().enumerate() {
+        let edge = Edge::parse(&spring.edge, &format!("edge_spring[{s}].edge"))?;
+        let trip = edge_spring_triplets(&mesh, &map, edge, spring.stiffness_per_length);
+        let name = format!("edge spring {}", edge.name());
+        terms.push(StiffnessTerm {
+            matrix: sparse_from_triplets(n, &trip, &name)?,
+            name,
+            loss_factor: 0.0,
+            sls: None,
+            reference_modulus_pa: 1.0,
+        });
+    }
+    let ex = &model.excitation;
+    let comp = match ex.dir.as_str() {
+        "x" => 0,
+        "y" => 1,
+        _ => 2,
+    };
+    let mut force = vec![0.0; n];
+    for (d, w) in point_dofs(&mesh, &map, ex.x, ex.y, comp) {
+        force[d] += ex.force * w;
+    }
+    let sensors = model
+        .sensor_positions()?
+        .into_iter()
+        .map(|s| SensorWeights {
+            weights: point_dofs(&mesh, &map, s.x_m, s.y_m, 2),
+            id: s.id,
+            x_m: s.x_m,
+            y_m: s.y_m,
+        })
+        .collect();
+    Ok(FeSystem {
+        n_free: n,
+        mass,
+        stiffness_terms: terms,
+        rayleigh: model
+            .damping
+            .as_ref()
+            .map(|d| (d.rayleigh.alpha, d.rayleigh.beta)),
+        force,
+        sensors,
+    })
+}
+
+/// Consistent z springs along an edge's mid-plane line: per segment of length d between nodes
+/// a, b: k d/6 [[2, 1], [1, 2]] on (uz_a, uz_b); for odd nz the line is interpolated from the
+/// two bounding layers (weights ½).
+fn edge_spring_triplets(
+    mesh: &Mesh,
+    map: &DofMap,
+    edge: Edge,
+    k_per_m: f64,
+) -> Vec<Triplet<usize, usize, f64>> {
+    let seg = match edge {
+        Edge::X0 | Edge::X1 => mesh.dy_m,
+        Edge::Y0 | Edge::Y1 => mesh.dx_m,
+    };
+    let layers = mesh.midplane_layers();
+    let lines: Vec<(Vec<usize>, f64)> = layers
+        .iter()
+        .map(|&(k, w)| (edge_nodes(mesh, edge, k), w))
+        .collect();
+    let n_pts = lines[0].0.len();
+    let mut out = Vec::new();
+    for s in 0..n_pts - 1 {
+        for (pa, pb, coef) in [(s, s, 2.0), (s, s + 1, 1.0), (s + 1, s, 1.0), (s + 1, s + 1, 2.0)] {
+            for (la, wa) in &lines {
+                for (lb, wb) in &lines {
+                    let (Some(r), Some(c)) = (map.free[3 * la[pa] + 2], map.free[3 * lb[pb] + 2])
+                    else {
+                        continue;
+                    };
+                    out.push(Triplet::new(r, c, k_per_m * seg / 6.0 * coef * wa * wb));
+                }
+            }
+        }
+    }
+    out
+}

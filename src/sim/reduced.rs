@@ -1,0 +1,476 @@
+//! The fast FRF method: Ritz–Galerkin projection onto the undamped modes plus static residual
+//! vectors, with the exact regional damping and SLS patch moduli in that basis.
+//!
+//! Basis V = [Φ | R], M-orthonormalised, where Φ are the undamped modes (mass-normalised, up to
+//! a cut-off well above the analysed fmax) and R holds
+//!
+//! - the static residual K₀⁻¹ f (the quasi-static contribution of every truncated mode), and
+//! - for each stiffness region r (when there are several), K₀⁻¹ K_r K₀⁻¹ f: the first term of
+//!   the Neumann series of the regional perturbation, so that a damped or viscoelastic region's
+//!   effect on the truncated modes is represented.
+//!
+//! M, every K_r and C are projected once (dense m × m). Per frequency the small complex system
+//! (Σ_r s_r(ω) K̂_r + jω Ĉ − ω² M̂) q = Vᵀ f is solved and mapped to the sensors with (S V) q.
+//!
+//! When no region is viscoelastic and there is no Rayleigh damping, the reduced dynamic stiffness
+//! is K̂_c − ω² M̂ with a constant complex K̂_c: it is diagonalised once (complex eigenvectors)
+//! and every frequency costs O(m) per sensor. Otherwise a dense LU per frequency is used
+//! (frequencies split over two threads).
+
+use faer::c64;
+use faer::linalg::solvers::Solve;
+use faer::sparse::linalg::matmul::sparse_dense_matmul;
+use faer::sparse::linalg::solvers::Llt;
+use faer::sparse::{SparseColMat, Triplet};
+use faer::{Accum, Mat, MatRef, Par, Side};
+
+use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
+use super::system::FeSystem;
+
+/// How the reduced system is solved per frequency.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ReducedSolve {
+    /// Diagonalise when possible (no SLS region, no Rayleigh damping), else LU per frequency.
+    #[default]
+    Auto,
+    /// Always a dense complex LU per frequency (the general path).
+    PerFrequencyLu,
+}
+
+/// Which residual vectors enrich the modal basis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BasisOptions {
+    /// Add the static residual K₀⁻¹ f.
+    pub static_residual: bool,
+    /// Add K₀⁻¹ K_r K₀⁻¹ f for every perturbing region r (see [`perturbing_regions`]).
+    pub region_residuals: bool,
+    /// For every perturbing region r, add K₀⁻¹ K_r φ_i for the modes below this frequency, Hz:
+    /// the static part of how the region's different (complex, possibly frequency-dependent)
+    /// stiffness factor changes those mode shapes — first-order perturbation through the
+    /// truncated modes. Without them a damped or viscoelastic patch couples the kept modes to
+    /// truncated ones that the basis cannot represent.
+    pub mode_residuals_below_hz: f64,
+}
+
+impl Default for BasisOptions {
+    fn default() -> Self {
+        Self {
+            static_residual: true,
+            region_residuals: true,
+            mode_residuals_below_hz: f64::INFINITY,
+        }
+    }
+}
+
+/// Checks a mode set against the system: `shapes` is n_free × m, one frequency per column.
+pub fn validate_modes(
+    sys: &FeSystem,
+    frequencies_hz: &[f64],
+    shapes: MatRef<'_, f64>,
+) -> Result<(), FrfError> {
+    if shapes.nrows() != sys.n_free || shapes.ncols() != frequencies_hz.len() {
+        return Err(FrfError::Dimension {
+            what: "mode shapes".into(),
+            expected: format!("{} × {} (n_free × modes)", sys.n_free, frequencies_hz.len()),
+            got: format!("{} × {}", shapes.nrows(), shapes.ncols()),
+        });
+    }
+    for (i, f) in frequencies_hz.iter().enumerate() {
+        if !f.is_finite() || *f < 0.0 {
+            return Err(FrfError::Invalid {
+                what: format!("mode {} frequency", i + 1),
+                message: format!("expected finite ≥ 0 Hz, got {f}"),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// The regions that perturb the first one: with K(ω) = s₁(ω) K₀ + Σ_{r≥2} (s_r − s₁) K_r, a
+/// region with the same loss factor as region 0 and no SLS (while region 0 has none either)
+/// contributes nothing, and region 0 itself is redundant (K₀⁻¹ K₀ x = x).
+pub fn perturbing_regions(sys: &FeSystem) -> Vec<usize> {
+    let Some(first) = sys.stiffness_terms.first() else {
+        return Vec::new();
+    };
+    (1..sys.stiffness_terms.len())
+        .filter(|&r| {
+            let t = &sys.stiffness_terms[r];
+            t.sls.is_some() || first.sls.is_some() || t.loss_factor != first.loss_factor
+        })
+        .collect()
+}
+
+/// Sum of every stiffness term, K₀ (each region at its reference modulus).
+pub(crate) fn k0(sys: &FeSystem) -> Result<SparseColMat<usize, f64>, FrfError> {
+    let mut trip = Vec::new();
+    for t in &sys.stiffness_terms {
+        let (sym, val) = t.matrix.parts();
+        for j in 0..sys.n_free {
+            for k in sym.col_range(j) {
+                trip.push(Triplet::new(sym.row_idx()[k], j, val[k]));
+            }
+        }
+    }
+    SparseColMat::try_new_from_triplets(sys.n_free, sys.n_free, &trip).map_err(|e| {
+        FrfError::Factorisation {
+            what: "K0 assembly".into(),
+            message: format!("{e:?}"),
+        }
+    })
+}
+
+/// Sparse × dense product, real.
+fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
+    sparse_dense_matmul(out.as_mut(), Accum::Replace, a.as_ref(), b, 1.0, Par::Seq);
+    out
+}
+
+/// M-orthonormalises the columns of `cand` against `basis` (already M-orthonormal, with
+/// `m_basis` = M × basis) and among themselves; drops columns that are numerically dependent.
+///
+/// Block form, all GEMMs: twice { C ← C − basis (m_basisᵀ C); SVQB: G = Cᵀ M C = U Λ Uᵀ,
+/// C ← C U Λ^{−1/2} over the eigenvalues above 1e-14 }, the columns scaled to unit M-norm
+/// first so that the threshold is relative to each candidate's size: "twice is enough".
+fn m_orthonormalise(
+    mass: &SparseColMat<usize, f64>,
+    basis: MatRef<'_, f64>,
+    m_basis: MatRef<'_, f64>,
+    cand: Vec<Vec<f64>>,
+) -> Result<Vec<Vec<f64>>, FrfError> {
+    let n = basis.nrows();
+    if cand.is_empty() {
+        return Ok(Vec::new());
+    }
+    // scale each candidate to unit M-norm first so that the dependence threshold is relative
+    let mut c = Mat::from_fn(n, cand.len(), |i, j| cand[j][i]);
+    for pass in 0..2 {
+        let mc = spmm(mass, c.as_ref());
+        for j in 0..c.ncols() {
+            if pass > 0 {
+                break;
+            }
+            let nrm = (0..n)
+                .map(|i| c[(i, j)] * mc[(i, j)])
+                .sum::<f64>()
+                .max(0.0)
+                .sqrt();
+            let inv = if nrm > 0.0 && nrm.is_finite() {
+                1.0 / nrm
+            } else {
+                0.0
+            };
+            for i in 0..n {
+                c[(i, j)] *= inv;
+            }
+        }
+        let p = m_basis.transpose() * &c;
+        c -= basis * &p;
+        let mc = spmm(mass, c.as_ref());
+        let g = c.transpose() * &mc;
+        let evd = g
+            .self_adjoint_eigen(Side::Lower)
+            .map_err(|e| FrfError::Factorisation {
+                what: "Gram matrix of the residual vectors".into(),
+                message: format!("{e:?}"),
+            })?;
+        let lam: Vec<f64> = evd.S().column_vector().iter().copied().collect();
+        // columns had unit M-norm before the projection: an absolute threshold is relative
+        let keep: Vec<usize> = (0..lam.len()).filter(|&k| lam[k] > 1e-14).collect();
+        let u = evd.U();
+        let w = Mat::from_fn(c.ncols(), keep.len(), |i, k| {
+            u[(i, keep[k])] / lam[keep[k]].sqrt()
+        });
+        c = &c * &w;
+        if c.ncols() == 0 {
+            break;
+        }
+    }
+    Ok((0..c.ncols())
+        .map(|j| c.col(j).iter().copied().collect())
+        .collect())
+}
+
+/// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted
+/// K₀ + σM with σ = (2π · 1 Hz)² is used instead: the vectors are still good Ritz vectors.
+fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError> {
+    let k = k0(sys)?;
+    match k.sp_cholesky(Side::Lower) {
+        Ok(l) => Ok(l),
+        Err(_) => {
+            let sigma = (2.0 * std::f64::consts::PI).powi(2);
+            let mut trip = Vec::new();
+            for (m, s) in [(&k, 1.0), (&sys.mass, sigma)] {
+                let (sym, val) = m.parts();
+                for j in 0..sys.n_free {
+                    for idx in sym.col_range(j) {
+                        trip.push(Triplet::new(sym.row_idx()[idx], j, s * val[idx]));
+                    }
+                }
+            }
+            let ks = SparseColMat::try_new_from_triplets(sys.n_free, sys.n_free, &trip).map_err(
+                |e| FrfError::Factorisation {
+                    what: "K0 + σM assembly".into(),
+                    message: format!("{e:?}"),
+                },
+            )?;
+            ks.sp_cholesky(Side::Lower)
+                .map_err(|e| FrfError::Factorisation {
+                    what: "K0 (and K0 + σM) Cholesky for the static residual".into(),
+                    message: format!("{e:?}"),
+                })
+        }
+    }
+}
+
+/// A copy of a stiffness term without its matrix (a 0 × 0 placeholder): only its frequency
+/// factor s_r(ω) is needed once the matrix has been projected.
+fn factor_only(t: &super::system::StiffnessTerm) -> Result<super::system::StiffnessTerm, FrfError> {
+    Ok(super::system::StiffnessTerm {
+        name: t.name.clone(),
+        matrix: SparseColMat::try_new_from_triplets(0, 0, &[]).map_err(|e| {
+            FrfError::Factorisation {
+                what: "empty placeholder matrix".into(),
+                message: format!("{e:?}"),
+            }
+        })?,
+        loss_factor: t.loss_factor,
+        sls: t.sls,
+        reference_modulus_pa: t.reference_modulus_pa,
+    })
+}
+
+/// The reduced (projected) model: everything the per-frequency solve needs.
+pub struct ReducedModel {
+    /// Basis size m (modes + residual vectors).
+    pub size: usize,
+    /// How many columns of the basis are modes (the rest are residual vectors).
+    pub n_modes: usize,
+    m_hat: Mat<f64>,
+    k_hat: Vec<Mat<f64>>,
+    factors: Vec<super::system::StiffnessTerm>,
+    rayleigh: (f64, f64),
+    b: Vec<f64>,
+    sv: Mat<f64>,
+    sensor_ids: Vec<String>,
+}
+
+impl ReducedModel {
+    /// Projects `sys` onto [modes | residual vectors]. `shapes` are mass-normalised undamped
+    /// modes (n_free × m), `frequencies_hz` their frequencies.
+    pub fn build(
+        sys: &FeSystem,
+        frequencies_hz: &[f64],
+        shapes: MatRef<'_, f64>,
+        opts: BasisOptions,
+    ) -> Result<Self, FrfError> {
+        validate_system(sys)?;
+        validate_modes(sys, frequencies_hz, shapes)?;
+        let n = sys.n_free;
+        let m_phi = spmm(&sys.mass, shapes);
+        let mut cand = Vec::new();
+        let regions = perturbing_regions(sys);
+        if opts.static_residual || !regions.is_empty() {
+            let llt = static_solver(sys)?;
+            let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
+            let r0 = llt.solve(f.as_ref());
+            if opts.static_residual {
+                cand.push(r0.col(0).iter().copied().collect::<Vec<f64>>());
+            }
+            let sel: Vec<usize> = (0..shapes.ncols())
+                .filter(|&i| frequencies_hz[i] <= opts.mode_residuals_below_hz)
+                .collect();
+            for &r in &regions {
+                let t = &sys.stiffness_terms[r];
+                if opts.region_residuals {
+                    let v = llt.solve(spmm(&t.matrix, r0.as_ref()).as_ref());
+                    cand.push(v.col(0).iter().copied().collect());
+                }
+                if !sel.is_empty() {
+                    let phi = Mat::from_fn(n, sel.len(), |i, j| shapes[(i, sel[j])]);
+                    let v = llt.solve(spmm(&t.matrix, phi.as_ref()).as_ref());
+                    for j in 0..sel.len() {
+                        cand.push(v.col(j).iter().copied().collect());
+                    }
+                }
+            }
+        }
+        let extra = m_orthonormalise(&sys.mass, shapes, m_phi.as_ref(), cand)?;
+        let m = shapes.ncols() + extra.len();
+        let v = Mat::from_fn(n, m, |i, j| {
+            if j < shapes.ncols() {
+                shapes[(i, j)]
+            } else {
+                extra[j - shapes.ncols()][i]
+            }
+        });
+        let vt = v.transpose();
+        let m_hat = vt * spmm(&sys.mass, v.as_ref());
+        let k_hat: Vec<Mat<f64>> = sys
+            .stiffness_terms
+            .iter()
+            .map(|t| vt * spmm(&t.matrix, v.as_ref()))
+            .collect();
+        let b: Vec<f64> = (0..m)
+            .map(|j| (0..n).map(|i| v[(i, j)] * sys.force[i]).sum())
+            .collect();
+        let sv = Mat::from_fn(sys.sensors.len(), m, |s, j| {
+            sys.sensors[s]
+                .weights
+                .iter()
+                .map(|&(d, w)| w * v[(d, j)])
+                .sum()
+        });
+        Ok(Self {
+            size: m,
+            n_modes: shapes.ncols(),
+            m_hat,
+            k_hat,
+            factors: sys
+                .stiffness_terms
+                .iter()
+                .map(factor_only)
+                .collect::<Result<_, _>>()?,
+            rayleigh: sys.rayleigh.unwrap_or((0.0, 0.0)),
+            b,
+            sv,
+            sensor_ids: sys.sensors.iter().map(|s| s.id.clone()).collect(),
+        })
+    }
+
+    fn frequency_independent(&self) -> bool {
+        self.factors.iter().all(|t| t.sls.is_none()) && self.rayleigh == (0.0, 0.0)
+    }
+
+    /// Reduced dynamic stiffness at ω.
+    fn dynamic_stiffness(&self, omega: f64) -> Mat<c64> {
+        let m = self.size;
+        let (alpha, beta) = self.rayleigh;
+        let mut a = Mat::<c64>::from_fn(m, m, |i, j| {
+            c64::new(-omega * omega, omega * alpha) * self.m_hat[(i, j)]
+        });
+        for (t, k) in self.factors.iter().zip(&self.k_hat) {
+            let (sr, si) = t.factor(omega);
+            let s = c64::new(sr, si + omega * beta);
+            for j in 0..m {
+                for i in 0..m {
+                    a[(i, j)] += s * k[(i, j)];
+                }
+            }
+        }
+        a
+    }
+
+    /// Reduced coordinates q(ω) for every frequency (m × n_freq), by LU per frequency.
+    fn q_by_lu(&self, freqs_hz: &[f64]) -> Result<Mat<c64>, FrfError> {
+        let b = Mat::<c64>::from_fn(self.size, 1, |i, _| c64::new(self.b[i], 0.0));
+        let rows = parallel_rows(freqs_hz, 2, |f| {
+            let a = self.dynamic_stiffness(2.0 * std::f64::consts::PI * f);
+            let q = a.partial_piv_lu().solve(b.as_ref());
+            let q: Vec<c64> = q.col(0).iter().copied().collect();
+            if q.iter().any(|z| !z.re.is_finite() || !z.im.is_finite()) {
+                return Err(FrfError::Factorisation {
+                    what: format!("reduced dynamic stiffness at {f} Hz"),
+                    message: "singular (non-finite solution)".into(),
+                });
+            }
+            Ok(q)
+        })?;
+        Ok(Mat::from_fn(self.size, freqs_hz.len(), |i, k| rows[k][i]))
+    }
+
+    /// Receptance at every sensor and frequency.
+    pub fn frf(&self, freqs_hz: &[f64], how: ReducedSolve) -> Result<Frf, FrfError> {
+        validate_frequencies(freqs_hz)?;
+        let out = if how == ReducedSolve::Auto && self.frequency_independent() {
+            match self.frf_diagonalised(freqs_hz)? {
+                Some(out) => out,
+                None => self.frf_lu(freqs_hz)?,
+            }
+        } else {
+            self.frf_lu(freqs_hz)?
+        };
+        Ok(Frf {
+            frequencies_hz: freqs_hz.to_vec(),
+            sensor_ids: self.sensor_ids.clone(),
+            receptance_m_per_n: out,
+        })
+    }
+
+    fn frf_lu(&self, freqs_hz: &[f64]) -> Result<Mat<c64>, FrfError> {
+        let q = self.q_by_lu(freqs_hz)?;
+        let svc = Mat::<c64>::from_fn(self.sv.nrows(), self.sv.ncols(), |i, j| {
+            c64::new(self.sv[(i, j)], 0.0)
+        });
+        // (n_freq × m) × (m × n_sensors)
+        Ok(q.transpose() * svc.transpose())
+    }
+
+    /// The constant-K̂_c path: K̂_c − ω²M̂ with M̂ = L Lᵀ; L⁻¹ K̂_c L⁻ᵀ = X Λ X⁻¹, so
+    /// q(ω) = L⁻ᵀ X (Λ − ω²)⁻¹ X⁻¹ L⁻¹ b. Returns `None` when the eigenvectors are too
+    /// ill-conditioned to trust (the caller then falls back to LU per frequency).
+    fn frf_diagonalised(&self, freqs_hz: &[f64]) -> Result<Option<Mat<c64>>, FrfError> {
+        let m = self.size;
+        let llt = match self.m_hat.llt(Side::Lower) {
+            Ok(l) => l,
+            Err(_) => return Ok(None),
+        };
+        let l = llt.L();
+        let mut kc = Mat::<c64>::zeros(m, m);
+        for (t, k) in self.factors.iter().zip(&self.k_hat) {
+            let (sr, si) = t.factor(0.0);
+            let s = c64::new(sr, si);
+            for j in 0..m {
+                for i in 0..m {
+                    kc[(i, j)] += s * k[(i, j)];
+                }
+            }
+        }
+        let lc = Mat::<c64>::from_fn(m, m, |i, j| c64::new(l[(i, j)], 0.0));
+        // T = L⁻¹ K̂_c L⁻ᵀ
+        let lc_lu = lc.partial_piv_lu();
+        let y = lc_lu.solve(kc.as_ref()); // L⁻¹ K̂_c
+        let t = lc_lu.solve(y.transpose()).transpose().to_owned(); // (L⁻¹ (L⁻¹K̂_c)ᵀ)ᵀ
+        let evd = match t.eigen() {
+            Ok(e) => e,
+            Err(_) => return Ok(None),
+        };
+        let x = evd.U().to_owned();
+        let lam: Vec<c64> = evd.S().column_vector().iter().copied().collect();
+        // Trust check: the eigen-residual and the solve of X must be accurate.
+        let tx = &t * &x;
+        let mut res: f64 = 0.0;
+        let mut scale: f64 = 0.0;
+        for j in 0..m {
+            for i in 0..m {
+                res = res.max((tx[(i, j)] - x[(i, j)] * lam[j]).norm());
+                scale = scale.max(t[(i, j)].norm());
+            }
+        }
+        let x_lu = x.partial_piv_lu();
+        let bc = Mat::<c64>::from_fn(m, 1, |i, _| c64::new(self.b[i], 0.0));
+        let y = x_lu.solve(lc_lu.solve(bc.as_ref()));
+        let back = &x * &y;
+        let lb = lc_lu.solve(bc.as_ref());
+        let mut yres: f64 = 0.0;
+        let mut ynorm: f64 = 0.0;
+        for i in 0..m {
+            yres = yres.max((back[(i, 0)] - lb[(i, 0)]).norm());
+            ynorm = ynorm.max(lb[(i, 0)].norm());
+        }
+        let trusted = res <= 1e-9 * scale && yres <= 1e-9 * ynorm; // false for NaN too
+        if !trusted {
+            return Ok(None);
+        }
+        // P = (S V) L⁻ᵀ X  (n_sensors × m)
+        let svc = Mat::<c64>::from_fn(self.sv.nrows(), m, |i, j| c64::new(self.sv[(i, j)], 0.0));
+        let lt_inv_x = lc_lu.solve_transpose(x.as_ref());
+        let p = &svc * &lt_inv_x;
+        let r = Mat::<c64>::from_fn(freqs_hz.len(), m, |k, i| {
+            let w = 2.0 * std::f64::consts::PI * freqs_hz[k];
+            y[(i, 0)] / (lam[i] - c64::new(w * w, 0.0))
+        });
+        Ok(Some(&r * p.transpose()))
+    }
+}
