@@ -393,7 +393,10 @@ impl Model {
         for (i, s) in self.edge_springs.iter().enumerate() {
             let key = format!("edge_spring[{i}]");
             Edge::parse(&s.edge, &format!("{key}.edge"))?;
-            non_negative(&format!("{key}.stiffness_per_length"), s.stiffness_per_length)?;
+            non_negative(
+                &format!("{key}.stiffness_per_length"),
+                s.stiffness_per_length,
+            )?;
         }
         if let Some(d) = &self.damping {
             non_negative("damping.rayleigh.alpha", d.rayleigh.alpha)?;
@@ -430,8 +433,7 @@ impl Model {
 
     fn inside(&self, key: &str, x: f64, y: f64) -> Result<(), SimError> {
         let (lx, ly) = (self.plate.lx, self.plate.ly);
-        if !(x.is_finite() && y.is_finite() && (0.0..=lx).contains(&x) && (0.0..=ly).contains(&y))
-        {
+        if !(x.is_finite() && y.is_finite() && (0.0..=lx).contains(&x) && (0.0..=ly).contains(&y)) {
             return Err(invalid(
                 key,
                 format!("position must lie on the plate [0, {lx}] × [0, {ly}] m, got ({x}, {y})"),
@@ -537,7 +539,10 @@ fn read_sensors_csv(path: &Path) -> Result<Vec<SensorPosition>, SimError> {
         headers.iter().position(|h| h == name).ok_or_else(|| {
             invalid(
                 key,
-                format!("{}: expected a column {name:?} in header id,x,y", path.display()),
+                format!(
+                    "{}: expected a column {name:?} in header id,x,y",
+                    path.display()
+                ),
             )
         })
     };
