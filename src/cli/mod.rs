@@ -1,1 +1,3 @@
 //! The `dampscope` command line.
+
+pub mod modes;
