@@ -422,12 +422,12 @@ impl Model {
                 ));
             }
         }
-        validate_material(&key, &self.material_of_patch(p))?;
         if let Some(s) = &p.sls {
             positive(&format!("{key}.sls.e"), s.e)?;
             positive(&format!("{key}.sls.e_inf"), s.e_inf)?;
             positive(&format!("{key}.sls.eta"), s.eta)?;
         }
+        validate_material(&key, &self.material_of_patch(p))?;
         Ok(())
     }
 
