@@ -45,3 +45,23 @@ fn every_example_model_parses_and_validates() {
     }
     assert!(n >= 3, "expected the three example models, found {n}");
 }
+
+/// The full speed run of the acceptance (all modes below 2 kHz of the reference mesh) with
+/// `--timings`; run with `cargo test --test sim_modes_cli -- --ignored --nocapture`.
+#[test]
+#[ignore = "speed run (reference mesh, ~220 modes); timed by benches/modes.rs and --timings"]
+fn reference_plate_modes_below_2khz_with_timings() {
+    let out = std::env::temp_dir().join(format!("dampscope-modes2k-{}.csv", std::process::id()));
+    run(&ModesArgs {
+        model: None,
+        count: None,
+        fmax: Some(2000.0),
+        out: Some(out.clone()),
+        timings: true,
+    })
+    .unwrap();
+    let csv = std::fs::read_to_string(&out).unwrap();
+    let n = csv.lines().count() - 1;
+    eprintln!("{n} modes below 2 kHz");
+    assert!((150..300).contains(&n), "{n}");
+}

@@ -68,6 +68,11 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
             report.lanczos_s,
             t0.elapsed().as_secs_f64()
         );
+        eprintln!(
+            "  of Lanczos: solves {:.3} s, re-orthogonalisation {:.3} s, tridiagonal {:.3} s, \
+             Ritz vectors {:.3} s",
+            report.solve_s, report.reorth_s, report.tridiagonal_s, report.ritz_s
+        );
         eprintln!("quality: max relative residual {res:.2e}, max |Phi^T M Phi - I| {orth:.2e}");
         if let Some(hwm) = peak_memory_kib() {
             eprintln!("peak memory (VmHWM): {:.1} MiB", hwm as f64 / 1024.0);

@@ -66,6 +66,14 @@ pub struct EigenReport {
     pub lanczos_s: f64,
     /// Lanczos steps (Krylov dimension).
     pub steps: usize,
+    /// Of `lanczos_s`: triangular solves with the factor, s.
+    pub solve_s: f64,
+    /// Of `lanczos_s`: full re-orthogonalisation, s.
+    pub reorth_s: f64,
+    /// Of `lanczos_s`: eigen-solves of the tridiagonal matrix (convergence checks), s.
+    pub tridiagonal_s: f64,
+    /// Of `lanczos_s`: Ritz vectors and their Rayleigh–Ritz refinement, s.
+    pub ritz_s: f64,
 }
 
 /// y = A x for a CSC matrix.
@@ -238,7 +246,9 @@ pub fn lowest_modes_with(
     let (_theta, s, wanted) = loop {
         let j = lz.m();
         w.copy_from_slice(&lz.p[j * n..(j + 1) * n]);
+        let ts = Instant::now();
         llt.solve_in_place(MatMut::from_column_major_slice_mut(&mut w, n, 1));
+        report.solve_s += ts.elapsed().as_secs_f64();
         if j > 0 {
             let bj = lz.beta[j - 1];
             for (wi, qi) in w.iter_mut().zip(&lz.q[(j - 1) * n..j * n]) {
@@ -250,12 +260,16 @@ pub fn lowest_modes_with(
             *wi -= aj * qi;
         }
         lz.alpha.push(aj);
+        let tr = Instant::now();
         lz.orthogonalise(&mut w, j + 1);
+        report.reorth_s += tr.elapsed().as_secs_f64();
         sparse_matvec(&system.mass, &w, &mut r);
         let mut bj = dot(&w, &r).max(0.0).sqrt();
         let m = j + 1;
         if m >= next_check || m == n {
+            let tt = Instant::now();
             let (theta, s) = tridiagonal_eigen(&lz.alpha, &lz.beta)?;
+            report.tridiagonal_s += tt.elapsed().as_secs_f64();
             if let Some(wanted) =
                 converged(&theta, &s, bj, request, theta_cut, options.tolerance, n)
             {
@@ -288,6 +302,7 @@ pub fn lowest_modes_with(
     };
     let m = lz.m();
     report.steps = m;
+    let tz = Instant::now();
     // Ritz vectors Φ = Q S[:, wanted] (θ descending = λ ascending).
     let mut sel = Mat::<f64>::zeros(m, wanted);
     for c in 0..wanted {
@@ -307,6 +322,7 @@ pub fn lowest_modes_with(
     );
     drop(lz);
     let (freqs, shapes) = refine(system, &k0, &llt, shapes)?;
+    report.ritz_s = tz.elapsed().as_secs_f64();
     report.lanczos_s = t1.elapsed().as_secs_f64();
     Ok((
         Modes {
