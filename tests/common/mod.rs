@@ -1,0 +1,74 @@
+//! Helpers shared by the integration tests.
+#![allow(dead_code)]
+
+use dampscope::decay::estimate::EstimateSettings;
+use dampscope::decay::{DecayEstimate, EvaluationRange};
+use dampscope::frontend::bands::Band;
+use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
+use dampscope::pipeline::analyze_decay;
+
+/// The report's eq. 4.5: Σ A e^{−D 2π f t} sin(2π f t − ψ), modes as (f_hz, D, A, ψ_deg).
+pub fn decaying_sines(modes: &[(f64, f64, f64, f64)], fs: f64, seconds: f64) -> Vec<f64> {
+    let n = (fs * seconds).round() as usize;
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / fs;
+            modes
+                .iter()
+                .map(|&(f, d, a, psi)| {
+                    let w = 2.0 * std::f64::consts::PI * f;
+                    a * (-d * w * t).exp() * (w * t - psi.to_radians()).sin()
+                })
+                .sum()
+        })
+        .collect()
+}
+
+/// Analyses `x` (starting at its onset) with an STFT of `window_ms` in one band.
+pub fn stft_estimate(
+    x: &[f64],
+    fs: f64,
+    window_ms: f64,
+    lo: f64,
+    hi: f64,
+    range: EvaluationRange,
+) -> DecayEstimate {
+    let band = Band::new(lo, hi).unwrap();
+    let mut fe = StftFrontEnd::new(
+        StftSettings {
+            window_ms,
+            ..Default::default()
+        },
+        fs,
+        &[band],
+    )
+    .unwrap();
+    let settings = EstimateSettings {
+        range,
+        ..Default::default()
+    };
+    analyze_decay(x, &mut fe, &settings).remove(0)
+}
+
+/// Relative error |got/want − 1|.
+pub fn rel_err(got: f64, want: f64) -> f64 {
+    (got / want - 1.0).abs()
+}
+
+/// Deterministic white Gaussian noise (splitmix64 + Box–Muller) of standard deviation `sigma`.
+pub fn gaussian_noise(n: usize, sigma: f64, seed: u64) -> Vec<f64> {
+    let mut state = seed;
+    let mut next = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let (u1, u2) = (next().max(1e-300), next());
+            sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        })
+        .collect()
+}
