@@ -42,6 +42,9 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
         (None, Some(f)) => ModeRequest::BelowHz(f),
         (None, None) => ModeRequest::BelowHz(model.output.fmax),
     };
+    for warning in crate::sim::mesh::Mesh::new(&model).warnings {
+        eprintln!("warning: {warning}");
+    }
     let system = assemble(&model)?;
     let t_assembly = t0.elapsed().as_secs_f64();
     let (modes, report) = lowest_modes_with(&system, request, &EigenOptions::default())?;

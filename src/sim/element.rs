@@ -1,9 +1,12 @@
 //! The 8-node hexahedron with incompatible modes (Wilson–Taylor with Taylor's correction,
 //! METHODS.md §5.2; the formulation of CalculiX C3D8I / Nastran CHEXA) and its consistent mass.
 //!
-//! The displacement is u = Σ N_a u_a + Σ_k P_k α_k with the bubbles P_k = 1 − ξ_k²; the 9
-//! internal dofs α are condensed statically, so the element has 24 dofs (node a, component c →
-//! 3a + c). Strains in Voigt order xx, yy, zz, yz, xz, xy with engineering shears.
+//! The displacement is u = Σ N_a u_a + Σ_k P_k α_k with the bubbles P_k = 1 − ξ_k² and 9
+//! internal dofs α. Two forms: [`hex8_incompatible_stiffness`] condenses α statically (24 dofs,
+//! node a, component c → 3a + c, mass of the nodal part only); [`hex8_incompatible_internal`]
+//! keeps α as 9 extra dofs with the bubbles' consistent mass, as CalculiX's C3D8I does (its
+//! 2 × 2 × 2 Gauss mass is only semi-definite: each P_k is 2/3 at every Gauss point).
+//! Strains in Voigt order xx, yy, zz, yz, xz, xy with engineering shears.
 //! Plain trilinear hexahedra lock in bending; [`hex8_plain_stiffness`] is kept as a test oracle
 //! of that locking.
 

@@ -7,6 +7,7 @@ pub mod error;
 pub mod mesh;
 pub mod model;
 pub mod system;
+pub mod validate;
 
 pub use error::SimError;
 pub use system::{FeSystem, Sls, StiffnessTerm};
