@@ -229,3 +229,59 @@ fn sparse_eigen_solver_agrees_with_a_dense_oracle() {
         }
     }
 }
+
+#[test]
+fn edge_springs_integrate_to_k_times_length_and_stiff_springs_act_like_pins() {
+    for nz in [2, 3] {
+        let mut model = small(8, 12, nz);
+        model.supports.pinned_edges.clear();
+        let extra = Model::from_toml_str(&format!(
+            "{REFERENCE_PLATE_TOML}\n[[edge_spring]]\nedge = \"y0\"\nstiffness_per_length = 1.0e13\n\
+             [[edge_spring]]\nedge = \"x1\"\nstiffness_per_length = 2.0e3\n"
+        ))
+        .unwrap();
+        model.edge_springs = extra.edge_springs;
+        let system = assemble(&model).unwrap();
+        let n = system.n_free;
+        let mesh = Mesh::new(&model);
+        // A uniform uz = 1 stretches every spring by 1: energy k · L per edge.
+        let mut u = vec![0.0; n];
+        for node in 0..mesh.n_nodes() {
+            u[3 * node + 2] = 1.0;
+        }
+        for (term, expected) in system.stiffness_terms[1..]
+            .iter()
+            .zip([1.0e13 * 2.0, 2.0e3 * 3.0])
+        {
+            let mut ku = vec![0.0; n];
+            sparse_matvec(&term.matrix, &u, &mut ku);
+            let e: f64 = u.iter().zip(&ku).map(|(a, b)| a * b).sum();
+            assert!(
+                (e - expected).abs() < 1e-9 * expected,
+                "{}: {e} vs {expected}",
+                term.name
+            );
+            assert_eq!(term.loss_factor, 0.0);
+        }
+    }
+    // Very stiff z springs on both 2 m edges ≈ the pinned plate (after 3 in-plane rigid modes).
+    let pinned = assemble(&small(8, 12, 2)).unwrap();
+    let fp = lowest_modes(&pinned, ModeRequest::Count(5))
+        .unwrap()
+        .frequencies_hz;
+    let mut sprung = small(8, 12, 2);
+    sprung.supports.pinned_edges.clear();
+    sprung.edge_springs = Model::from_toml_str(&format!(
+        "{REFERENCE_PLATE_TOML}\n[[edge_spring]]\nedge = \"y0\"\nstiffness_per_length = 1.0e14\n\
+         [[edge_spring]]\nedge = \"y1\"\nstiffness_per_length = 1.0e14\n"
+    ))
+    .unwrap()
+    .edge_springs;
+    let fs = lowest_modes(&assemble(&sprung).unwrap(), ModeRequest::Count(8))
+        .unwrap()
+        .frequencies_hz;
+    assert!(fs[..3].iter().all(|&f| f < 0.01), "{fs:?}");
+    for (a, b) in fs[3..].iter().zip(&fp) {
+        assert!((a - b).abs() / b < 0.005, "sprung {a} vs pinned {b}");
+    }
+}
