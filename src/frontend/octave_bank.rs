@@ -45,8 +45,7 @@ impl Default for OctaveBankSettings {
 }
 
 /// Butterworth band-pass from `lo_hz` to `hi_hz` at `fs_hz` as `order` biquads (unit gain at the
-/// pre-warped geometric centre). Errors when the band is empty, reaches 0 Hz or Nyquist, or is
-/// wider than a ratio of 5.8 (the transform then gives real poles).
+/// pre-warped geometric centre). Errors when the band is empty or reaches 0 Hz or Nyquist.
 pub fn butterworth_bandpass(
     order: usize,
     lo_hz: f64,
@@ -65,14 +64,6 @@ pub fn butterworth_bandpass(
     let prewarp = |f: f64| 2.0 * fs_hz * (std::f64::consts::PI * f / fs_hz).tan();
     let (w1, w2) = (prewarp(lo_hz), prewarp(hi_hz));
     let (w0, bw) = ((w1 * w2).sqrt(), w2 - w1);
-    if bw >= 2.0 * w0 {
-        return Err(Error::setting(
-            "octave band",
-            format!(
-                "band {lo_hz}…{hi_hz} Hz is too wide for a band-pass design (hi/lo must be < 5.8)"
-            ),
-        ));
-    }
     let two_fs = 2.0 * fs_hz;
     let omega0 = 2.0 * (w0 / two_fs).atan();
     let e1 = Complex::from_polar(1.0, -omega0);
@@ -82,25 +73,33 @@ pub fn butterworth_bandpass(
         let theta = std::f64::consts::PI * (2 * k + order + 1) as f64 / (2 * order) as f64;
         let p = Complex::from_polar(1.0, theta) * bw;
         let disc = (p * p - 4.0 * w0 * w0).sqrt();
-        // Of the two band-pass poles from this prototype pole, the conjugate of one comes from
-        // the conjugate prototype pole; keeping the upper-half-plane one per prototype pole
-        // gives each conjugate pair exactly once.
-        for s in [(p + disc) * 0.5, (p - disc) * 0.5] {
-            if s.im <= 0.0 {
-                continue;
-            }
+        // The two band-pass poles from a complex prototype pole lie on opposite sides of the
+        // real axis (their product w0² is real and positive) and those of its conjugate are their
+        // conjugates: keeping the upper-half-plane one per prototype pole gives each conjugate
+        // pair once. The real prototype pole (odd orders) gives a pair of its own (conjugate,
+        // or both real for very wide bands near Nyquist), which makes one section.
+        let roots = [(p + disc) * 0.5, (p - disc) * 0.5];
+        let zs: Vec<Complex<f64>> = if p.im.abs() <= 1e-12 * p.norm() {
+            roots.iter().map(|s| (two_fs + s) / (two_fs - s)).collect()
+        } else {
+            let s = if roots[0].im > 0.0 {
+                roots[0]
+            } else {
+                roots[1]
+            };
             let z = (two_fs + s) / (two_fs - s);
-            let (a1, a2) = (-2.0 * z.re, z.norm_sqr());
-            let h = (Complex::new(1.0, 0.0) - e2) / (1.0 + e1 * a1 + e2 * a2);
-            let g = 1.0 / h.norm();
-            sections.push(Coefficients {
-                a1,
-                a2,
-                b0: g,
-                b1: 0.0,
-                b2: -g,
-            });
-        }
+            vec![z, z.conj()]
+        };
+        let (a1, a2) = (-(zs[0] + zs[1]).re, (zs[0] * zs[1]).re);
+        let h = (Complex::new(1.0, 0.0) - e2) / (1.0 + e1 * a1 + e2 * a2);
+        let g = 1.0 / h.norm();
+        sections.push(Coefficients {
+            a1,
+            a2,
+            b0: g,
+            b1: 0.0,
+            b2: -g,
+        });
     }
     if sections.len() != order {
         return Err(Error::setting(
