@@ -41,7 +41,14 @@ fn report_setting_10_ms_window_20_db_drop_reproduces_2_16_percent() {
     // Chapter 4: a 100 Hz wide band is analysed with a 10 ms window (Δf = 100 Hz, eq. 2.13),
     // 50 % overlap, a 20 dB drop (−5…−25 dB), D from the band centre (200 Hz).
     let fs = 4000.0;
-    let est = stft_estimate(&three_sines(fs), fs, 10.0, 150.0, 250.0, EvaluationRange::T20);
+    let est = stft_estimate(
+        &three_sines(fs),
+        fs,
+        10.0,
+        150.0,
+        250.0,
+        EvaluationRange::T20,
+    );
     let d_eq_pct = 100.0 * est.damping_ratio.unwrap();
     assert!(
         (d_eq_pct / 2.16 - 1.0).abs() < 0.005,

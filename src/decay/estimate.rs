@@ -5,6 +5,7 @@
 //! otherwise the estimate is empty and a [`Flag`] says why.
 
 use super::damping::damping_ratio;
+use super::lundeby::{compensated_edc, lundeby, FirstRegressionEnd, LundebySettings};
 use super::range::EvaluationRange;
 use super::regression::{fit_line, LineFit};
 
@@ -32,6 +33,9 @@ pub enum Flag {
     NonFiniteInput,
     /// The input ended in the middle of a sample frame or before the length its header announced.
     InputTruncated,
+    /// A noise floor was found; the curve was truncated at Lundeby's intersection time and its
+    /// tail compensated (ISO 3382 practice).
+    NoiseCompensated,
     /// The band lies (partly) above the Nyquist frequency or outside what the front end resolves.
     BandOutOfRange,
 }
@@ -50,6 +54,7 @@ impl Flag {
             Flag::NonFiniteInput => "non_finite_input",
             Flag::InputTruncated => "input_truncated",
             Flag::BandOutOfRange => "band_out_of_range",
+            Flag::NoiseCompensated => "noise_compensated",
         }
     }
 }
@@ -190,6 +195,27 @@ fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
     (before < 2.0 * tail && pnr < 150.0).then_some(pnr)
 }
 
+/// The Schroeder curve of `energies` minus the noise energy, truncated at Lundeby's
+/// intersection time, with the tail beyond it added back (METHODS.md §2.2). `None` when Lundeby's method fails.
+fn noise_compensated_curve(
+    energies: &[f64],
+    frame_period_s: f64,
+    f_center_hz: f64,
+) -> Option<Vec<f64>> {
+    let settings = LundebySettings {
+        // pyrato's per-band block length (800/f + 10) ms, at least one frame.
+        initial_block_s: ((800.0 / f_center_hz.max(1.0) + 10.0) * 1e-3).max(frame_period_s),
+        first_regression_end: FirstRegressionEnd::FirstBelow,
+        ..Default::default()
+    };
+    let found = lundeby(energies, 1.0 / frame_period_s, &settings).ok()?;
+    let curve: Vec<f64> = compensated_edc(energies, 1.0 / frame_period_s, &found, true)
+        .into_iter()
+        .map_while(|v| v)
+        .collect();
+    (curve.len() >= 2).then_some(curve)
+}
+
 /// Estimates a decay from its (unnormalised) Schroeder curve `edc`, the frame energies and the
 /// per-frame frequencies, with frames `frame_period_s` apart in a band centred on `f_center_hz`.
 pub fn estimate_from_curve(
@@ -203,12 +229,30 @@ pub fn estimate_from_curve(
     if edc.is_empty() || edc[0] <= 0.0 || !edc[0].is_finite() {
         return DecayEstimate::failed(Flag::NoEnergy);
     }
-    let levels_db: Vec<f64> = edc
-        .iter()
-        .map(|&e| 10.0 * (e.max(f64::MIN_POSITIVE) / edc[0]).log10())
-        .collect();
-    let times_s: Vec<f64> = (0..edc.len()).map(|k| k as f64 * frame_period_s).collect();
     let noise = noise_floor_pnr_db(energies);
+    // With a noise floor, truncate at Lundeby's intersection time and add the missing tail.
+    let mut noise_compensated = false;
+    let curve: Vec<f64> = match noise {
+        Some(_) => match noise_compensated_curve(energies, frame_period_s, f_center_hz) {
+            Some(c) => {
+                noise_compensated = true;
+                c
+            }
+            // A noise floor that Lundeby cannot place: no trustworthy curve.
+            None => return DecayEstimate::failed(Flag::NoiseLimited),
+        },
+        None => edc.to_vec(),
+    };
+    if curve.is_empty() || curve[0] <= 0.0 {
+        return DecayEstimate::failed(Flag::NoiseLimited);
+    }
+    let levels_db: Vec<f64> = curve
+        .iter()
+        .map(|&e| 10.0 * (e.max(f64::MIN_POSITIVE) / curve[0]).log10())
+        .collect();
+    let times_s: Vec<f64> = (0..curve.len())
+        .map(|k| k as f64 * frame_period_s)
+        .collect();
     let fit_of = |r| fit_range(&levels_db, &times_s, r, noise, settings.min_points);
     let t_of = |r| fit_of(r).ok().and_then(|f| f.fit.t60_s());
 
@@ -265,6 +309,9 @@ pub fn estimate_from_curve(
         }
     }
 
+    if noise_compensated {
+        est.flags.push(Flag::NoiseCompensated);
+    }
     if let (Some(t20), Some(t30)) = (est.t20_s, est.t30_s) {
         let c = 100.0 * (t30 / t20 - 1.0);
         est.curvature_pct = Some(c);

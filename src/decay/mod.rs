@@ -8,6 +8,7 @@
 
 pub mod damping;
 pub mod estimate;
+pub mod lundeby;
 pub mod range;
 pub mod regression;
 pub mod schroeder;

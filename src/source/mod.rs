@@ -110,3 +110,29 @@ pub trait Source: Send {
     /// Returns `Ok(false)` (and an empty block) at the end of the input.
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
 }
+
+pub mod wav_out;
+
+pub use wav_out::{write_wav_f32, WavStreamWriter};
+mod frames;
+pub mod wav;
+
+pub use wav::{WavHeader, WavSource};
+pub mod csv;
+pub mod raw;
+
+pub use csv::CsvSource;
+pub use raw::{RawFormat, RawSource};
+pub mod recording_set;
+
+pub use recording_set::{
+    open_recording_set, write_recording_set, DecayKind, Excitation, RecordingMeta, RecordingSet,
+    Sensor,
+};
+pub mod stdin;
+
+pub use stdin::{open_input, open_stream, InputOptions, OpenedInput};
+pub mod noise;
+pub mod synth;
+
+pub use synth::{synthesize, Mode, SynthSource, SynthSpec};

@@ -54,3 +54,21 @@ pub fn stft_estimate(
 pub fn rel_err(got: f64, want: f64) -> f64 {
     (got / want - 1.0).abs()
 }
+
+/// Deterministic white Gaussian noise (splitmix64 + Box–Muller) of standard deviation `sigma`.
+pub fn gaussian_noise(n: usize, sigma: f64, seed: u64) -> Vec<f64> {
+    let mut state = seed;
+    let mut next = move || {
+        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
+    };
+    (0..n)
+        .map(|_| {
+            let (u1, u2) = (next().max(1e-300), next());
+            sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        })
+        .collect()
+}

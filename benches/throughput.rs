@@ -1,0 +1,129 @@
+//! Throughput of the STFT + online Schroeder path, in samples per second per channel.
+//!
+//! `analyzer/*`: one channel on one core (ChannelAnalyzer: onset, STFT, one estimator per band).
+//! `pipeline/*`: the threaded pipeline (reader → workers → rows) on 1 and 64 channels; criterion's
+//! elements/s there is samples per channel × channels, so divide by the channel count.
+
+use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use dampscope::cli::bands_arg::default_bands;
+use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
+use dampscope::frontend::FrontEnd;
+use dampscope::pipeline::{self, AnalysisConfig, ChannelAnalyzer, FrontEndFactory};
+use dampscope::source::{Block, SignalInfo, Source, SourceError};
+use std::sync::Arc;
+
+fn decay(fs: f64, seconds: f64, seed: usize) -> Vec<f64> {
+    let n = (fs * seconds) as usize;
+    let f = 55.0 + 13.0 * (seed % 7) as f64;
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / fs;
+            (-2.0 * t).exp() * (2.0 * std::f64::consts::PI * f * t).sin()
+        })
+        .collect()
+}
+
+struct Memory {
+    info: SignalInfo,
+    data: Arc<Vec<Vec<f64>>>,
+    pos: usize,
+}
+
+impl Source for Memory {
+    fn info(&self) -> &SignalInfo {
+        &self.info
+    }
+    fn read_block(&mut self, max: usize, block: &mut Block) -> Result<bool, SourceError> {
+        let n = self.data[0].len();
+        if self.pos >= n {
+            block.channels.clear();
+            return Ok(false);
+        }
+        let end = (self.pos + max).min(n);
+        block.channels = self
+            .data
+            .iter()
+            .map(|c| c[self.pos..end].to_vec())
+            .collect();
+        self.pos = end;
+        Ok(true)
+    }
+}
+
+fn factory(fs: f64) -> FrontEndFactory {
+    let bands = default_bands(fs).unwrap();
+    Arc::new(move || {
+        Ok(Box::new(StftFrontEnd::new(StftSettings::default(), fs, &bands)?) as Box<dyn FrontEnd>)
+    })
+}
+
+fn analyzer(c: &mut Criterion) {
+    let mut g = c.benchmark_group("analyzer");
+    g.sample_size(10);
+    for fs in [4000.0, 48000.0] {
+        let x = decay(fs, 20.0, 0);
+        let f = factory(fs);
+        g.throughput(Throughput::Elements(x.len() as u64));
+        g.bench_with_input(
+            BenchmarkId::new("stft200ms_one_channel", fs as u64),
+            &x,
+            |b, x| {
+                b.iter(|| {
+                    let mut an = ChannelAnalyzer::new(
+                        "c".into(),
+                        fs,
+                        f().unwrap(),
+                        AnalysisConfig::default(),
+                    );
+                    let mut rows = Vec::new();
+                    for chunk in x.chunks(4096) {
+                        an.push(chunk, &mut rows);
+                    }
+                    an.finish(false, &mut rows);
+                    rows.len()
+                })
+            },
+        );
+    }
+    g.finish();
+}
+
+fn pipeline_bench(c: &mut Criterion) {
+    let mut g = c.benchmark_group("pipeline");
+    g.sample_size(10);
+    for (fs, channels, seconds) in [
+        (4000.0, 1, 20.0),
+        (48000.0, 1, 20.0),
+        (4000.0, 64, 5.0),
+        (48000.0, 64, 2.0),
+    ] {
+        let data: Arc<Vec<Vec<f64>>> =
+            Arc::new((0..channels).map(|k| decay(fs, seconds, k)).collect());
+        let f = factory(fs);
+        g.throughput(Throughput::Elements((data[0].len() * channels) as u64));
+        let id = format!("{}ch_{}hz", channels, fs as u64);
+        g.bench_function(id, |b| {
+            b.iter(|| {
+                let src = Memory {
+                    info: SignalInfo {
+                        sample_rate_hz: fs,
+                        channel_names: (0..channels).map(|k| format!("ch{k}")).collect(),
+                    },
+                    data: data.clone(),
+                    pos: 0,
+                };
+                let mut n = 0;
+                pipeline::run(Box::new(src), &f, &AnalysisConfig::default(), |rows| {
+                    n += rows.len();
+                    Ok(())
+                })
+                .unwrap();
+                n
+            })
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, analyzer, pipeline_bench);
+criterion_main!(benches);

@@ -1,0 +1,245 @@
+//! Lundeby's iterative noise-floor method (Lundeby et al., Acustica 81, 1995), as pyrato
+//! implements it (`intersection_time_lundeby`, METHODS.md §2.2): where a decay sinks into the
+//! noise (intersection time t_i), the noise energy N, and the late decay's reverberation time.
+//! With them the Schroeder integral is truncated at t_i and the missing tail is added back as
+//! C = N · T_late / (6 ln 10) (ISO 3382 practice).
+//!
+//! Works on any non-negative energy sequence at `rate_hz` values per second: squared samples of
+//! an impulse response, or a front end's band energies per frame.
+
+/// Lundeby's constants, with pyrato's defaults.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LundebySettings {
+    /// Length of the first smoothing blocks, s (pyrato: 30 ms broadband, (800/f + 10) ms per band).
+    pub initial_block_s: f64,
+    /// Blocks per 10 dB of decay for the second smoothing (5).
+    pub intervals_per_10db: f64,
+    /// The regression stops this far above the noise, dB (10).
+    pub db_above_noise: f64,
+    /// Dynamic range used for the late regression, dB (20).
+    pub dynamic_range_db: f64,
+    /// End of the first regression: the *last* block above noise + 10 dB (pyrato, for smooth
+    /// broadband energies) or the *first* block below it after the peak (robust for band energies
+    /// at a frame rate, whose noise blocks fluctuate by ±10 dB).
+    pub first_regression_end: FirstRegressionEnd,
+}
+
+/// Where Lundeby's first regression stops.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub enum FirstRegressionEnd {
+    /// The last block above noise + `db_above_noise` (pyrato's rule).
+    LastAbove,
+    /// The first block after the peak below noise + `db_above_noise`.
+    FirstBelow,
+}
+
+impl Default for LundebySettings {
+    fn default() -> Self {
+        LundebySettings {
+            initial_block_s: 0.03,
+            intervals_per_10db: 5.0,
+            db_above_noise: 10.0,
+            dynamic_range_db: 20.0,
+            first_regression_end: FirstRegressionEnd::LastAbove,
+        }
+    }
+}
+
+/// What Lundeby's method found.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct LundebyResult {
+    /// Where the decay line meets the noise level, s from the start.
+    pub intersection_time_s: f64,
+    /// Reverberation time of the late decay (−60 / slope), s.
+    pub late_t60_s: f64,
+    /// Mean noise energy per value (same units as the input).
+    pub noise_energy: f64,
+}
+
+/// Why the method found nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum LundebyFailure {
+    /// The decay does not rise far enough above the noise.
+    #[error("decay too close to the noise floor for Lundeby's regression")]
+    LowSnr,
+    /// The late regression does not fall.
+    #[error("late decay regression does not fall")]
+    NoDecay,
+    /// Too few values.
+    #[error("too few values")]
+    TooShort,
+}
+
+fn db(x: f64) -> f64 {
+    10.0 * x.log10()
+}
+
+/// Block means of `data` with `block` values per block and the block-centre times.
+fn smooth(data: &[f64], rate_hz: f64, block: usize) -> (Vec<f64>, Vec<f64>) {
+    let n_blocks = data.len() / block;
+    let means = (0..n_blocks)
+        .map(|b| data[b * block..(b + 1) * block].iter().sum::<f64>() / block as f64)
+        .collect();
+    let times = (0..n_blocks)
+        .map(|b| (0.5 + b as f64) * block as f64 / rate_hz)
+        .collect();
+    (means, times)
+}
+
+/// Least squares `level = a + b t`, returns (a, b).
+fn regress(times: &[f64], levels: &[f64]) -> Option<(f64, f64)> {
+    let fit = super::regression::fit_line(times, levels)?;
+    Some((fit.intercept_db, fit.slope_db_per_s))
+}
+
+fn argmax(v: &[f64]) -> usize {
+    let mut best = 0;
+    for (i, &x) in v.iter().enumerate() {
+        if x > v[best] || v[best].is_nan() {
+            best = i;
+        }
+    }
+    best
+}
+
+/// Runs Lundeby's iteration on `energy` (values `1/rate_hz` s apart).
+pub fn lundeby(
+    energy: &[f64],
+    rate_hz: f64,
+    settings: &LundebySettings,
+) -> Result<LundebyResult, LundebyFailure> {
+    let n = energy.len();
+    let block = ((settings.initial_block_s * rate_hz).round() as usize).max(1);
+    let (smoothed, times) = smooth(energy, rate_hz, block);
+    if smoothed.len() < 3 {
+        return Err(LundebyFailure::TooShort);
+    }
+    // (2) initial noise: mean of the last 10 % of the raw energies.
+    let tail = &energy[(n as f64 * 0.9) as usize..];
+    let noise0 = tail.iter().sum::<f64>() / tail.len().max(1) as f64;
+    // (3) first regression from the peak to the last block 10 dB above the noise.
+    let start = argmax(&smoothed);
+    let limit = db(noise0) + settings.db_above_noise;
+    let inner = &smoothed[(start + 1).min(smoothed.len())..smoothed.len() - 1];
+    let found = match settings.first_regression_end {
+        FirstRegressionEnd::LastAbove => inner.iter().rposition(|&x| db(x) > limit),
+        FirstRegressionEnd::FirstBelow => inner.iter().position(|&x| db(x) <= limit),
+    };
+    // pyrato's index arithmetic (one block before the found one), kept for agreement.
+    let stop = found.ok_or(LundebyFailure::LowSnr)? + start;
+    let dyn_range = db(smoothed[stop]) - db(smoothed[start]);
+    if stop == start || dyn_range > -5.0 {
+        return Err(LundebyFailure::LowSnr);
+    }
+    let levels: Vec<f64> = smoothed[start..stop].iter().map(|&x| db(x)).collect();
+    let (mut a, mut b) = regress(&times[start..stop], &levels).ok_or(LundebyFailure::LowSnr)?;
+    if b == 0.0 || !b.is_finite() {
+        return Err(LundebyFailure::NoDecay);
+    }
+    // (4) preliminary crossing point.
+    let mut crossing = (db(noise0) - a) / b;
+    // (5) new block length: `intervals_per_10db` blocks per 10 dB.
+    let blocks_in_decay = dyn_range / -10.0 * settings.intervals_per_10db;
+    let block2 =
+        (((times[stop] - times[start]) / blocks_in_decay * rate_hz).round() as usize).max(1);
+    // (6) smooth again.
+    let (smoothed2, times2) = smooth(energy, rate_hz, block2);
+    if smoothed2.len() < 3 {
+        return Err(LundebyFailure::TooShort);
+    }
+    let idx_max = argmax(&smoothed2);
+    let t_block = block2 as f64 / rate_hz;
+    let mut noise = noise0;
+    for _ in 0..=30 {
+        // (7) background level from 10 dB (of decay) after the crossing point, or the last 10 %.
+        let idx_last10 = (smoothed2.len() as f64 * 0.9).round();
+        let idx_10db = ((crossing - 10.0 / b) / t_block).round().max(1.0);
+        let from = idx_last10.min(idx_10db).max(0.0) as usize;
+        let rest = &smoothed2[from.min(smoothed2.len() - 1)..];
+        noise = rest.iter().sum::<f64>() / rest.len() as f64;
+        // (8) late decay regression.
+        let upper = db(noise) + settings.db_above_noise + settings.dynamic_range_db;
+        let start_loop = smoothed2[idx_max..]
+            .iter()
+            .position(|&x| db(x) < upper)
+            .map_or(0, |i| i + idx_max);
+        let lower = db(noise) + settings.db_above_noise;
+        let stop_loop = smoothed2[(start_loop + 1).min(smoothed2.len())..]
+            .iter()
+            .position(|&x| db(x) < lower)
+            .ok_or(LundebyFailure::LowSnr)?
+            + start_loop;
+        if stop_loop < start_loop + 2 {
+            // Too few blocks for a late regression (band energies at a low frame rate): keep
+            // the previous line and crossing point.
+            break;
+        }
+        let levels: Vec<f64> = smoothed2[start_loop..stop_loop]
+            .iter()
+            .map(|&x| db(x))
+            .collect();
+        (a, b) = regress(&times2[start_loop..stop_loop], &levels).ok_or(LundebyFailure::LowSnr)?;
+        if b >= 0.0 {
+            return Err(LundebyFailure::NoDecay);
+        }
+        // (9) new crossing point.
+        let old = crossing;
+        crossing = (db(noise) - a) / b;
+        if (old - crossing).abs() < 0.01 {
+            break;
+        }
+    }
+    Ok(LundebyResult {
+        intersection_time_s: crossing,
+        late_t60_s: -60.0 / b,
+        noise_energy: noise,
+    })
+}
+
+/// The Lundeby-compensated Schroeder curve of `energy`: Σ_{k ≤ m < i} (e_m − n) + C up to the
+/// intersection index i, with C = N · T_late / (6 ln 10) · rate, and n = N when `subtract_noise`
+/// (Chu + Lundeby, Guski & Vorländer 2014) else 0. Values from i on are `None`.
+pub fn compensated_edc(
+    energy: &[f64],
+    rate_hz: f64,
+    found: &LundebyResult,
+    subtract_noise: bool,
+) -> Vec<Option<f64>> {
+    let n = if subtract_noise {
+        found.noise_energy
+    } else {
+        0.0
+    };
+    let i = ((found.intersection_time_s * rate_hz).round().max(0.0) as usize).min(energy.len());
+    let tail = found.noise_energy * found.late_t60_s / (6.0 * std::f64::consts::LN_10) * rate_hz;
+    let mut out = vec![None; energy.len()];
+    let mut acc = tail;
+    for k in (0..i).rev() {
+        acc += energy[k] - n;
+        out[k] = Some(acc);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn short_frame_rate_decay_into_noise() {
+        let levels = [
+            0.0, -7.0, -15.0, -22.0, -31.0, -40.0, -33.0, -43.0, -53.0, -45.0, -40.0, -42.0, -47.0,
+            -35.0, -37.0, -39.0, -45.0, -40.0, -40.0, -44.0, -42.0, -39.0, -44.0, -36.0, -36.0,
+            -41.0, -43.0, -46.0, -41.0, -44.0, -46.0, -44.0, -46.0, -37.0, -39.0, -37.0, -34.0,
+            -42.0, -46.0, -43.0,
+        ];
+        let e: Vec<f64> = levels.iter().map(|l| 10f64.powf(l / 10.0)).collect();
+        let s = LundebySettings {
+            initial_block_s: 0.1,
+            first_regression_end: FirstRegressionEnd::FirstBelow,
+            ..Default::default()
+        };
+        let r = lundeby(&e, 10.0, &s);
+        assert!(r.is_ok(), "{r:?}");
+    }
+}

@@ -1,0 +1,382 @@
+//! Streaming CSV text source: one row per sample, one column per channel.
+//!
+//! Accepted layouts (FORMATS.md §1–2):
+//! - a header row, then numbers. A first column named `time` or `t` (any case) is the time in
+//!   seconds: the sample rate comes from its spacing, which must be uniform within 1e-6
+//!   relative. Every other column is a channel named by its header;
+//! - no header (the first row is numeric): every column is a channel, named `ch0`, `ch1`, ….
+//!
+//! Lines starting with `#` are comments; `# fs=51200` (or `# fs: 51200`, anything may follow
+//! the number) gives the sample rate. Precedence: an explicit rate from the caller, then the
+//! comment, then the time column (the time column is not checked when a rate is given).
+//! Separators: `,`, else `;`, else tab (detected on the first row). `NaN`/`inf` are passed through
+//! (the pipeline flags the channel); text that is not a number is [`SourceError::Malformed`] with
+//! the line number. Rows before a bad row are always delivered first.
+
+use std::io::{BufRead, Read};
+
+use super::raw::check_fs;
+use super::{Block, SignalInfo, Source, SourceError};
+
+/// Longest accepted line, in bytes; longer lines are malformed (guards memory on binary input).
+const MAX_LINE_BYTES: u64 = 1 << 20;
+
+/// What the next call to `next_line` found.
+enum Line {
+    /// A data line (trimmed), with whether it ended in a newline.
+    Data(String, bool),
+    /// End of the stream.
+    End,
+}
+
+/// A [`Source`] streaming CSV text row by row (never the whole file in memory).
+pub struct CsvSource<R: BufRead + Send> {
+    reader: R,
+    what: String,
+    info: SignalInfo,
+    delim: char,
+    time_column: bool,
+    /// Check the time column's spacing (only when the rate came from it).
+    check_time: bool,
+    /// Columns per row, including the time column.
+    n_cols: usize,
+    line_no: usize,
+    /// Comment-given sample rate seen while reading (first one wins).
+    comment_fs: Option<f64>,
+    /// Rows already read (while finding the rate) and not yet delivered.
+    queued: std::collections::VecDeque<Vec<f64>>,
+    last_time: Option<f64>,
+    pending: Option<SourceError>,
+    frames_read: u64,
+    done: bool,
+    buf: Vec<u8>,
+}
+
+fn parse_fs_comment(comment: &str) -> Option<f64> {
+    let rest = comment.trim_start_matches('#').trim_start();
+    let rest = rest
+        .strip_prefix("fs")
+        .or_else(|| rest.strip_prefix("FS"))?
+        .trim_start();
+    let rest = rest
+        .strip_prefix('=')
+        .or_else(|| rest.strip_prefix(':'))?
+        .trim_start();
+    let end = rest
+        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-')))
+        .unwrap_or(rest.len());
+    rest[..end].parse().ok()
+}
+
+fn detect_delim(line: &str) -> char {
+    [',', ';', '\t']
+        .into_iter()
+        .find(|&d| line.contains(d))
+        .unwrap_or(',')
+}
+
+impl<R: BufRead + Send> CsvSource<R> {
+    /// Reads the header (and, when the rate comes from the time column, the first two rows).
+    /// `fs_hz` is an explicit sample rate that wins over the file's; `what` names the input.
+    ///
+    /// Errors: `Empty` without any data row, `Setting` when no sample rate can be found,
+    /// `Malformed` for bad rows or non-uniform time.
+    pub fn new(
+        reader: R,
+        what: impl Into<String>,
+        fs_hz: Option<f64>,
+    ) -> Result<Self, SourceError> {
+        let what = what.into();
+        if let Some(fs) = fs_hz {
+            check_fs(&what, fs)?;
+        }
+        let mut s = Self {
+            reader,
+            what,
+            info: SignalInfo {
+                sample_rate_hz: 0.0,
+                channel_names: Vec::new(),
+            },
+            delim: ',',
+            time_column: false,
+            check_time: false,
+            n_cols: 0,
+            line_no: 0,
+            comment_fs: None,
+            queued: Default::default(),
+            last_time: None,
+            pending: None,
+            frames_read: 0,
+            done: false,
+            buf: Vec::new(),
+        };
+        let first = match s.next_line()? {
+            Line::Data(l, _) => l,
+            Line::End => return Err(SourceError::Empty { what: s.what }),
+        };
+        s.delim = detect_delim(&first);
+        let fields: Vec<&str> = first.split(s.delim).map(str::trim).collect();
+        s.n_cols = fields.len();
+        let numeric = fields.iter().all(|f| f.parse::<f64>().is_ok());
+        if numeric {
+            s.info.channel_names = (0..s.n_cols).map(|k| format!("ch{k}")).collect();
+            let row = s.parse_row(&first, true)?;
+            s.queued.push_back(row);
+        } else {
+            let names: Vec<String> = fields
+                .iter()
+                .map(|f| f.trim_matches('"').trim().to_string())
+                .collect();
+            s.time_column = matches!(names[0].to_ascii_lowercase().as_str(), "time" | "t");
+            let skip = usize::from(s.time_column);
+            s.info.channel_names = names[skip..].to_vec();
+            if s.info.channel_names.is_empty() {
+                return Err(SourceError::Malformed {
+                    what: s.what,
+                    format: "csv",
+                    detail: format!(
+                        "line {}: expected at least one channel column, got only {:?}",
+                        s.line_no, names[0]
+                    ),
+                });
+            }
+        }
+        let fs = match fs_hz.or(s.comment_fs) {
+            Some(fs) => fs,
+            None if s.time_column => s.fs_from_time()?,
+            None => {
+                return Err(SourceError::Setting {
+                    what: s.what,
+                    detail: "sample rate unknown: expected a `time` column, a `# fs=HZ` comment or an explicit fs".into(),
+                })
+            }
+        };
+        s.info.sample_rate_hz = check_fs(&s.what, fs)?;
+        Ok(s)
+    }
+
+    /// Reads the first two rows to get the rate from the time spacing; keeps them queued.
+    fn fs_from_time(&mut self) -> Result<f64, SourceError> {
+        while self.queued.len() < 2 {
+            match self.next_line()? {
+                Line::Data(l, nl) => {
+                    let row = self.parse_row(&l, nl)?;
+                    self.queued.push_back(row);
+                }
+                Line::End => {
+                    if self.queued.is_empty() {
+                        return Err(SourceError::Empty {
+                            what: self.what.clone(),
+                        });
+                    }
+                    return Err(SourceError::Setting {
+                        what: self.what.clone(),
+                        detail: "sample rate unknown: the time column needs at least 2 rows, got 1"
+                            .into(),
+                    });
+                }
+            }
+        }
+        let dt = self.queued[1][0] - self.queued[0][0];
+        if !(dt.is_finite() && dt > 0.0) {
+            return Err(self.malformed(format!(
+                "time column: expected increasing times, got {} then {}",
+                self.queued[0][0], self.queued[1][0]
+            )));
+        }
+        self.check_time = true;
+        self.last_time = Some(self.queued[1][0]);
+        Ok(1.0 / dt)
+    }
+
+    /// Replaces the channel names (for example by sensor ids). Errors when the count differs.
+    pub fn with_channel_names(mut self, names: Vec<String>) -> Result<Self, SourceError> {
+        if names.len() != self.info.channel_names.len() {
+            return Err(SourceError::ChannelCount {
+                what: self.what.clone(),
+                expected: names.len(),
+                got: self.info.channel_names.len(),
+            });
+        }
+        self.info.channel_names = names;
+        Ok(self)
+    }
+
+    fn malformed(&self, detail: String) -> SourceError {
+        SourceError::Malformed {
+            what: self.what.clone(),
+            format: "csv",
+            detail,
+        }
+    }
+
+    /// The next non-blank, non-comment line (comments are scanned for `fs=`).
+    fn next_line(&mut self) -> Result<Line, SourceError> {
+        loop {
+            self.buf.clear();
+            let n = (&mut self.reader)
+                .take(MAX_LINE_BYTES)
+                .read_until(b'\n', &mut self.buf)
+                .map_err(|e| SourceError::Io {
+                    what: self.what.clone(),
+                    source: e,
+                })?;
+            if n == 0 {
+                return Ok(Line::End);
+            }
+            self.line_no += 1;
+            let newline = self.buf.last() == Some(&b'\n');
+            if !newline && n as u64 == MAX_LINE_BYTES {
+                return Err(self.malformed(format!(
+                    "line {}: expected a line of at most {MAX_LINE_BYTES} bytes, got a longer one",
+                    self.line_no
+                )));
+            }
+            let text = std::str::from_utf8(&self.buf).map_err(|e| {
+                self.malformed(format!(
+                    "line {}: expected UTF-8 text, got an invalid byte at column {}",
+                    self.line_no,
+                    e.valid_up_to() + 1
+                ))
+            })?;
+            let t = text.trim_start_matches('\u{feff}').trim();
+            if t.is_empty() {
+                continue;
+            }
+            if t.starts_with('#') {
+                if self.comment_fs.is_none() {
+                    self.comment_fs = parse_fs_comment(t);
+                }
+                continue;
+            }
+            return Ok(Line::Data(t.to_string(), newline));
+        }
+    }
+
+    /// Parses one data row into its numbers (time first when there is a time column).
+    fn parse_row(&self, line: &str, newline: bool) -> Result<Vec<f64>, SourceError> {
+        let mut row = Vec::with_capacity(self.n_cols);
+        for (k, field) in line.split(self.delim).enumerate() {
+            let f = field.trim();
+            match f.parse::<f64>() {
+                Ok(v) => row.push(v),
+                Err(_) => {
+                    let col = if self.time_column && k == 0 {
+                        "time".to_string()
+                    } else {
+                        let c = k - usize::from(self.time_column);
+                        self.info
+                            .channel_names
+                            .get(c)
+                            .cloned()
+                            .unwrap_or_else(|| format!("column {}", k + 1))
+                    };
+                    return Err(self.malformed(format!(
+                        "line {}, {col}: expected a number, got {f:?}",
+                        self.line_no
+                    )));
+                }
+            }
+        }
+        if row.len() != self.n_cols {
+            if !newline && row.len() < self.n_cols {
+                return Err(SourceError::Truncated {
+                    what: self.what.clone(),
+                    expected: format!("line {} with {} columns", self.line_no, self.n_cols),
+                    got: format!("{} columns before the end of the input", row.len()),
+                });
+            }
+            return Err(self.malformed(format!(
+                "line {}: expected {} columns, got {}",
+                self.line_no,
+                self.n_cols,
+                row.len()
+            )));
+        }
+        Ok(row)
+    }
+
+    /// Checks the spacing of a new time value against the rate.
+    fn check_spacing(&mut self, t: f64) -> Result<(), SourceError> {
+        if let Some(prev) = self.last_time {
+            let dt = 1.0 / self.info.sample_rate_hz;
+            let tol = 1e-6 * dt + 8.0 * f64::EPSILON * t.abs().max(prev.abs());
+            if !((t - prev) - dt).abs().le(&tol) {
+                return Err(self.malformed(format!(
+                    "line {}: time column not uniform: expected a step of {dt:e} s (within 1e-6 relative), got {:e} s",
+                    self.line_no,
+                    t - prev
+                )));
+            }
+        }
+        self.last_time = Some(t);
+        Ok(())
+    }
+}
+
+impl<R: BufRead + Send> Source for CsvSource<R> {
+    fn info(&self) -> &SignalInfo {
+        &self.info
+    }
+
+    fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
+        let n_ch = self.info.channel_names.len();
+        let skip = usize::from(self.time_column);
+        block.channels.resize_with(n_ch, Vec::new);
+        for ch in &mut block.channels {
+            ch.clear();
+        }
+        if let Some(e) = self.pending.take() {
+            return Err(e);
+        }
+        let max_frames = max_frames.max(1);
+        let mut got = 0;
+        while got < max_frames {
+            let row = if let Some(r) = self.queued.pop_front() {
+                r
+            } else {
+                if self.done {
+                    break;
+                }
+                let parsed = match self.next_line() {
+                    Ok(Line::Data(l, nl)) => self.parse_row(&l, nl).and_then(|row| {
+                        if self.check_time {
+                            self.check_spacing(row[0])?;
+                        }
+                        Ok(row)
+                    }),
+                    Ok(Line::End) => {
+                        self.done = true;
+                        break;
+                    }
+                    Err(e) => Err(e),
+                };
+                match parsed {
+                    Ok(r) => r,
+                    Err(e) => {
+                        self.done = true;
+                        self.pending = Some(e);
+                        break;
+                    }
+                }
+            };
+            for (ch, v) in block.channels.iter_mut().zip(&row[skip..]) {
+                ch.push(*v);
+            }
+            got += 1;
+        }
+        self.frames_read += got as u64;
+        if got == 0 {
+            if let Some(e) = self.pending.take() {
+                return Err(e);
+            }
+            if self.frames_read == 0 {
+                return Err(SourceError::Empty {
+                    what: self.what.clone(),
+                });
+            }
+            return Ok(false);
+        }
+        Ok(true)
+    }
+}

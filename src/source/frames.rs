@@ -1,0 +1,229 @@
+//! Shared machinery of the binary sources (WAV data chunk, raw samples): read whole interleaved
+//! frames block by block from any reader, decode them, and report a short stream only after
+//! every complete frame has been delivered.
+
+use std::io::{self, Read};
+
+use super::{Block, SourceError};
+
+/// Upper bound on the bytes read by one `read_block` call.
+const MAX_BLOCK_BYTES: usize = 1 << 20;
+
+/// How one sample is stored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Codec {
+    /// Unsigned 8-bit integer, offset 128 (WAV 8-bit PCM).
+    U8,
+    /// Signed little-endian integer of 2, 3 or 4 bytes.
+    Int(usize),
+    /// Little-endian IEEE float, 4 bytes.
+    F32,
+    /// Little-endian IEEE float, 8 bytes.
+    F64,
+}
+
+impl Codec {
+    /// Bytes per sample.
+    pub(crate) fn bytes(self) -> usize {
+        match self {
+            Codec::U8 => 1,
+            Codec::Int(b) => b,
+            Codec::F32 => 4,
+            Codec::F64 => 8,
+        }
+    }
+
+    /// Whether the samples are integers (scaled by the source's integer scale).
+    pub(crate) fn is_int(self) -> bool {
+        matches!(self, Codec::U8 | Codec::Int(_))
+    }
+
+    /// The factor that maps integer counts to [-1, 1): 2^-(bits-1). 1 for floats.
+    pub(crate) fn full_scale(self) -> f64 {
+        match self {
+            Codec::U8 => 1.0 / 128.0,
+            Codec::Int(b) => 1.0 / f64::powi(2.0, 8 * b as i32 - 1),
+            Codec::F32 | Codec::F64 => 1.0,
+        }
+    }
+
+    /// Decodes one sample from exactly `self.bytes()` bytes (integers as raw counts).
+    fn decode(self, b: &[u8]) -> f64 {
+        match self {
+            Codec::U8 => f64::from(b[0]) - 128.0,
+            Codec::Int(2) => f64::from(i16::from_le_bytes([b[0], b[1]])),
+            Codec::Int(3) => f64::from(i32::from_le_bytes([0, b[0], b[1], b[2]]) >> 8),
+            Codec::Int(_) => f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Codec::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Codec::F64 => f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]]),
+        }
+    }
+}
+
+/// Reads until `buf` holds `want` bytes or the reader ends; returns the number of bytes read.
+pub(crate) fn read_up_to<R: Read>(r: &mut R, buf: &mut Vec<u8>, want: usize) -> io::Result<usize> {
+    buf.clear();
+    buf.resize(want, 0);
+    let mut n = 0;
+    while n < want {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => break,
+            Ok(k) => n += k,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    buf.truncate(n);
+    Ok(n)
+}
+
+/// Streams interleaved frames of a fixed codec and channel count.
+pub(crate) struct FrameReader<R> {
+    reader: R,
+    codec: Codec,
+    channels: usize,
+    /// Multiplier applied to every decoded value.
+    scale: f64,
+    /// Data bytes announced by a header, if any (None: read to the end of the stream).
+    announced_bytes: Option<u64>,
+    bytes_read: u64,
+    frames_read: u64,
+    pending: Option<SourceError>,
+    done: bool,
+    buf: Vec<u8>,
+    what: String,
+}
+
+impl<R: Read> FrameReader<R> {
+    /// A reader of `channels` interleaved channels; `announced_bytes` limits the data length.
+    pub(crate) fn new(
+        reader: R,
+        codec: Codec,
+        channels: usize,
+        scale: f64,
+        announced_bytes: Option<u64>,
+        what: String,
+    ) -> Self {
+        Self {
+            reader,
+            codec,
+            channels,
+            scale,
+            announced_bytes,
+            bytes_read: 0,
+            frames_read: 0,
+            pending: None,
+            done: false,
+            buf: Vec::new(),
+            what,
+        }
+    }
+
+    /// Replaces the multiplier applied to every decoded value.
+    pub(crate) fn set_scale(&mut self, scale: f64) {
+        self.scale = scale;
+    }
+
+    /// The name of the input, for error messages.
+    pub(crate) fn what(&self) -> &str {
+        &self.what
+    }
+
+    fn frame_bytes(&self) -> usize {
+        self.channels * self.codec.bytes()
+    }
+
+    fn truncation(&self, partial: usize) -> SourceError {
+        let fb = self.frame_bytes() as u64;
+        match self.announced_bytes {
+            Some(n) => SourceError::Truncated {
+                what: self.what.clone(),
+                expected: format!("{n} data bytes ({} frames) announced by the header", n / fb),
+                got: format!(
+                    "{} bytes ({} whole frames)",
+                    self.bytes_read, self.frames_read
+                ),
+            },
+            None => SourceError::Truncated {
+                what: self.what.clone(),
+                expected: format!(
+                    "a whole number of {fb}-byte frames ({} channels x {} bytes)",
+                    self.channels,
+                    self.codec.bytes()
+                ),
+                got: format!(
+                    "{} bytes: {} whole frames and {partial} stray bytes",
+                    self.bytes_read, self.frames_read
+                ),
+            },
+        }
+    }
+
+    /// The [`super::Source::read_block`] contract: up to `max_frames` frames into `block`,
+    /// `Ok(false)` at the end, every complete frame before a `Truncated` error, `Empty` when the
+    /// stream held no frame at all.
+    pub(crate) fn read_block(
+        &mut self,
+        max_frames: usize,
+        block: &mut Block,
+    ) -> Result<bool, SourceError> {
+        block.channels.resize_with(self.channels, Vec::new);
+        for ch in &mut block.channels {
+            ch.clear();
+        }
+        if let Some(e) = self.pending.take() {
+            return Err(e);
+        }
+        if self.done {
+            return Ok(false);
+        }
+        let fb = self.frame_bytes();
+        // At most ~1 MiB per call (but at least one frame): memory stays bounded whatever the
+        // caller asks; fewer frames than asked is within the contract.
+        let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
+        let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb) as u64;
+        if let Some(n) = self.announced_bytes {
+            want = want.min(n - self.bytes_read);
+        }
+        let got = read_up_to(&mut self.reader, &mut self.buf, want as usize).map_err(|e| {
+            SourceError::Io {
+                what: self.what.clone(),
+                source: e,
+            }
+        })?;
+        self.bytes_read += got as u64;
+        let whole = got / fb;
+        let partial = got % fb;
+        let at_end =
+            got < want as usize || self.announced_bytes.is_some_and(|n| self.bytes_read == n);
+        let short = got < want as usize && (self.announced_bytes.is_some() || partial > 0);
+        if at_end {
+            self.done = true;
+        }
+        for ch in &mut block.channels {
+            ch.reserve(whole);
+        }
+        let sb = self.codec.bytes();
+        for frame in self.buf[..whole * fb].chunks_exact(fb) {
+            for (ch, s) in block.channels.iter_mut().zip(frame.chunks_exact(sb)) {
+                ch.push(self.codec.decode(s) * self.scale);
+            }
+        }
+        self.frames_read += whole as u64;
+        if short {
+            self.pending = Some(self.truncation(partial));
+        }
+        if whole == 0 {
+            if let Some(e) = self.pending.take() {
+                return Err(e);
+            }
+            if self.frames_read == 0 {
+                return Err(SourceError::Empty {
+                    what: self.what.clone(),
+                });
+            }
+            return Ok(false);
+        }
+        Ok(true)
+    }
+}

@@ -1,0 +1,378 @@
+//! Recording sets (FORMATS.md §1): a directory holding one decay per sensor
+//! (`responses.wav` or `responses.csv`), the sensor positions (`sensors.csv`), optionally the
+//! excitation (`excitation.csv`) and metadata (`meta.json`).
+//!
+//! Reading is tolerant where the contract allows it (unknown `meta.json` keys, extra CSV
+//! columns, any WAV hound reads) and strict where a mistake would silently mislabel data (channel
+//! count vs sensor rows, non-numeric coordinates).
+
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::Path;
+
+use super::csv::CsvSource;
+use super::wav::WavSource;
+use super::wav_out::write_wav_f32;
+use super::{Source, SourceError};
+
+/// Whether the responses are impulse responses or free decays.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DecayKind {
+    /// Response to a force impulse at t = 0 (the default).
+    #[default]
+    ImpulseResponse,
+    /// A free decay after the excitation stopped.
+    FreeDecay,
+}
+
+/// A sensor: id and position in plate coordinates.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Sensor {
+    /// Sensor id (the channel name).
+    pub id: String,
+    /// Position along x, metres.
+    pub x_m: f64,
+    /// Position along y, metres.
+    pub y_m: f64,
+    /// Height, metres; `None` = mid-plane.
+    pub z_m: Option<f64>,
+    /// Measured direction (`z` by default).
+    pub dir: String,
+}
+
+/// Where and how hard the structure was excited.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Excitation {
+    /// Position along x, metres.
+    pub x_m: f64,
+    /// Position along y, metres.
+    pub y_m: f64,
+    /// Direction of the force (`z` usually).
+    pub dir: String,
+    /// Force (impulse) amplitude, newtons.
+    pub force_n: f64,
+}
+
+/// The `meta.json` of a recording set. Unknown keys are ignored; every field is optional.
+#[derive(Clone, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default)]
+pub struct RecordingMeta {
+    /// Sample rate in Hz (the WAV header wins when there is a WAV; needed for a CSV without time).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fs: Option<f64>,
+    /// Impulse responses or free decays.
+    pub kind: DecayKind,
+    /// Measured quantity (`acceleration`, …), informative.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub quantity: Option<String>,
+    /// Unit of the samples, informative.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unit: Option<String>,
+    /// Signal-to-noise ratio in dB, informative only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub snr_db: Option<f64>,
+    /// Physical units per count of an integer WAV (instead of scaling to [-1, 1)).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale: Option<f64>,
+}
+
+/// An opened recording set: metadata, sensors and a streaming source of the responses whose
+/// channel names are the sensor ids, in `sensors.csv` row order.
+pub struct RecordingSet {
+    /// The metadata (defaults when `meta.json` is absent).
+    pub meta: RecordingMeta,
+    /// One sensor per channel.
+    pub sensors: Vec<Sensor>,
+    /// Excitations (empty when `excitation.csv` is absent).
+    pub excitation: Vec<Excitation>,
+    /// The responses.
+    pub source: Box<dyn Source>,
+}
+
+fn io_err(path: &Path, e: std::io::Error) -> SourceError {
+    SourceError::Io {
+        what: path.display().to_string(),
+        source: e,
+    }
+}
+
+fn malformed(path: &Path, format: &'static str, detail: String) -> SourceError {
+    SourceError::Malformed {
+        what: path.display().to_string(),
+        format,
+        detail,
+    }
+}
+
+/// Reads a small CSV table: returns the lower-cased header and the rows with their line numbers.
+fn read_table(path: &Path) -> Result<(Vec<String>, Vec<(u64, Vec<String>)>), SourceError> {
+    let file = File::open(path).map_err(|e| io_err(path, e))?;
+    let mut r = ::csv::ReaderBuilder::new()
+        .trim(::csv::Trim::All)
+        .flexible(true)
+        .comment(Some(b'#'))
+        .from_reader(BufReader::new(file));
+    let header: Vec<String> = r
+        .headers()
+        .map_err(|e| malformed(path, "csv", e.to_string()))?
+        .iter()
+        .map(str::to_ascii_lowercase)
+        .collect();
+    let mut rows = Vec::new();
+    for rec in r.records() {
+        let rec = rec.map_err(|e| malformed(path, "csv", e.to_string()))?;
+        let line = rec.position().map_or(0, |p| p.line());
+        if rec.iter().all(str::is_empty) {
+            continue;
+        }
+        if rec.len() != header.len() {
+            return Err(malformed(
+                path,
+                "csv",
+                format!(
+                    "line {line}: expected {} columns, got {}",
+                    header.len(),
+                    rec.len()
+                ),
+            ));
+        }
+        rows.push((line, rec.iter().map(str::to_string).collect()));
+    }
+    Ok((header, rows))
+}
+
+/// Column index of `name`, or a `Malformed` error naming the header found.
+fn column(path: &Path, header: &[String], name: &str) -> Result<usize, SourceError> {
+    header.iter().position(|h| h == name).ok_or_else(|| {
+        malformed(
+            path,
+            "csv",
+            format!("expected a column {name:?} in the header, got {header:?}"),
+        )
+    })
+}
+
+fn number(path: &Path, line: u64, col: &str, text: &str) -> Result<f64, SourceError> {
+    text.parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| {
+            malformed(
+                path,
+                "csv",
+                format!("line {line}, column {col}: expected a finite number, got {text:?}"),
+            )
+        })
+}
+
+/// Reads `sensors.csv`: `id,x,y` with optional `z` and `dir`.
+pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SourceError> {
+    let (header, rows) = read_table(path)?;
+    let (ci, cx, cy) = (
+        column(path, &header, "id")?,
+        column(path, &header, "x")?,
+        column(path, &header, "y")?,
+    );
+    let cz = header.iter().position(|h| h == "z");
+    let cd = header.iter().position(|h| h == "dir");
+    rows.iter()
+        .map(|(line, r)| {
+            Ok(Sensor {
+                id: r[ci].clone(),
+                x_m: number(path, *line, "x", &r[cx])?,
+                y_m: number(path, *line, "y", &r[cy])?,
+                z_m: match cz.map(|c| r[c].as_str()) {
+                    None | Some("") => None,
+                    Some(t) => Some(number(path, *line, "z", t)?),
+                },
+                dir: cd
+                    .map(|c| r[c].clone())
+                    .filter(|d| !d.is_empty())
+                    .unwrap_or_else(|| "z".into()),
+            })
+        })
+        .collect()
+}
+
+/// Reads `excitation.csv`: `x,y,dir,force`.
+pub fn read_excitation(path: &Path) -> Result<Vec<Excitation>, SourceError> {
+    let (header, rows) = read_table(path)?;
+    let (cx, cy, cd, cf) = (
+        column(path, &header, "x")?,
+        column(path, &header, "y")?,
+        column(path, &header, "dir")?,
+        column(path, &header, "force")?,
+    );
+    rows.iter()
+        .map(|(line, r)| {
+            Ok(Excitation {
+                x_m: number(path, *line, "x", &r[cx])?,
+                y_m: number(path, *line, "y", &r[cy])?,
+                dir: r[cd].clone(),
+                force_n: number(path, *line, "force", &r[cf])?,
+            })
+        })
+        .collect()
+}
+
+/// Opens the recording set in `dir`. `responses.wav` wins over `responses.csv`; `meta.json` and
+/// `excitation.csv` are optional. Errors: `ChannelCount` when the responses do not have one
+/// channel per `sensors.csv` row, `Setting` when neither response file exists.
+pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
+    let meta_path = dir.join("meta.json");
+    let meta = if meta_path.exists() {
+        let f = File::open(&meta_path).map_err(|e| io_err(&meta_path, e))?;
+        serde_json::from_reader(BufReader::new(f))
+            .map_err(|e| malformed(&meta_path, "json", e.to_string()))?
+    } else {
+        RecordingMeta::default()
+    };
+    let sensors = read_sensors(&dir.join("sensors.csv"))?;
+    let exc_path = dir.join("excitation.csv");
+    let excitation = if exc_path.exists() {
+        read_excitation(&exc_path)?
+    } else {
+        Vec::new()
+    };
+    let ids: Vec<String> = sensors.iter().map(|s| s.id.clone()).collect();
+    let wav = dir.join("responses.wav");
+    let csv = dir.join("responses.csv");
+    let (what, got, source): (String, usize, Box<dyn Source>) = if wav.exists() {
+        let what = wav.display().to_string();
+        let f = File::open(&wav).map_err(|e| io_err(&wav, e))?;
+        let mut s = WavSource::new(BufReader::new(f), what.clone())?;
+        if let Some(scale) = meta.scale {
+            s = s.with_int_scale(scale);
+        }
+        let got = s.header().channels;
+        (what, got, Box::new(s))
+    } else if csv.exists() {
+        let what = csv.display().to_string();
+        let f = File::open(&csv).map_err(|e| io_err(&csv, e))?;
+        let s = CsvSource::new(BufReader::new(f), what.clone(), meta.fs)?;
+        (what, s.info().channels(), Box::new(s))
+    } else {
+        return Err(SourceError::Setting {
+            what: dir.display().to_string(),
+            detail: "recording set: expected responses.wav or responses.csv, found neither".into(),
+        });
+    };
+    if got != ids.len() {
+        return Err(SourceError::ChannelCount {
+            what: format!("{what} (vs {} sensors in sensors.csv)", ids.len()),
+            expected: ids.len(),
+            got,
+        });
+    }
+    let source = rename(source, ids);
+    Ok(RecordingSet {
+        meta,
+        sensors,
+        excitation,
+        source,
+    })
+}
+
+/// Wraps a source so that its channels carry the given names (same count, checked by caller).
+fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
+    struct Renamed {
+        inner: Box<dyn Source>,
+        info: super::SignalInfo,
+    }
+    impl Source for Renamed {
+        fn info(&self) -> &super::SignalInfo {
+            &self.info
+        }
+        fn read_block(
+            &mut self,
+            max_frames: usize,
+            block: &mut super::Block,
+        ) -> Result<bool, SourceError> {
+            self.inner.read_block(max_frames, block)
+        }
+    }
+    let info = super::SignalInfo {
+        sample_rate_hz: inner.info().sample_rate_hz,
+        channel_names: names,
+    };
+    Box::new(Renamed { inner, info })
+}
+
+/// Writes a recording set to `dir` (created if needed): `responses.wav` (32-bit float),
+/// `sensors.csv`, `excitation.csv` and `meta.json` (with `fs` set to `sample_rate_hz`).
+/// Errors: `ChannelCount` when `channels` and `sensors` differ in number, `Setting` when the rate
+/// is not a positive whole number of Hz (a WAV header stores an integer rate).
+pub fn write_recording_set(
+    dir: &Path,
+    meta: &RecordingMeta,
+    sensors: &[Sensor],
+    excitation: &[Excitation],
+    sample_rate_hz: f64,
+    channels: &[Vec<f64>],
+) -> Result<(), SourceError> {
+    let what = dir.display().to_string();
+    if channels.len() != sensors.len() {
+        return Err(SourceError::ChannelCount {
+            what,
+            expected: sensors.len(),
+            got: channels.len(),
+        });
+    }
+    if !(sample_rate_hz >= 1.0 && sample_rate_hz <= f64::from(u32::MAX))
+        || sample_rate_hz.fract() != 0.0
+    {
+        return Err(SourceError::Setting {
+            what,
+            detail: format!(
+                "sample rate: expected a positive whole number of Hz for the WAV header, got {sample_rate_hz}"
+            ),
+        });
+    }
+    std::fs::create_dir_all(dir).map_err(|e| io_err(dir, e))?;
+    let write = |name: &str, f: &dyn Fn(&mut dyn Write) -> std::io::Result<()>| {
+        let path = dir.join(name);
+        let file = File::create(&path).map_err(|e| io_err(&path, e))?;
+        let mut w = BufWriter::new(file);
+        f(&mut w)
+            .and_then(|_| w.flush())
+            .map_err(|e| io_err(&path, e))
+    };
+    write("responses.wav", &|w| {
+        write_wav_f32(w, sample_rate_hz as u32, channels)
+    })?;
+    let with_z = sensors.iter().any(|s| s.z_m.is_some());
+    write("sensors.csv", &|w| {
+        write!(w, "id,x,y")?;
+        if with_z {
+            write!(w, ",z")?;
+        }
+        writeln!(w, ",dir")?;
+        for s in sensors {
+            write!(w, "{},{},{}", s.id, s.x_m, s.y_m)?;
+            if with_z {
+                match s.z_m {
+                    Some(z) => write!(w, ",{z}")?,
+                    None => write!(w, ",")?,
+                }
+            }
+            writeln!(w, ",{}", s.dir)?;
+        }
+        Ok(())
+    })?;
+    write("excitation.csv", &|w| {
+        writeln!(w, "x,y,dir,force")?;
+        for e in excitation {
+            writeln!(w, "{},{},{},{}", e.x_m, e.y_m, e.dir, e.force_n)?;
+        }
+        Ok(())
+    })?;
+    let meta = RecordingMeta {
+        fs: Some(sample_rate_hz),
+        ..meta.clone()
+    };
+    write("meta.json", &|w| {
+        serde_json::to_writer_pretty(&mut *w, &meta).map_err(std::io::Error::other)?;
+        writeln!(w)
+    })
+}

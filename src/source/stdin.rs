@@ -1,0 +1,192 @@
+//! Opening an input by name: `-` (standard input, format detected), a `.wav` or `.csv` file, a
+//! recording-set directory, or any other file (detected like standard input).
+//!
+//! Detection looks at the first bytes without losing them: they are read into a small buffer
+//! and chained in front of the rest of the stream. `RIFF` → WAV; text → CSV; anything else →
+//! [`SourceError::UnrecognisedFormat`] quoting the first bytes. `--raw` skips detection.
+
+use std::fs::File;
+use std::io::{BufReader, Cursor, Read};
+use std::path::Path;
+
+use super::csv::CsvSource;
+use super::frames::read_up_to;
+use super::raw::{RawFormat, RawSource};
+use super::recording_set::{open_recording_set, RecordingMeta, Sensor};
+use super::wav::WavSource;
+use super::{Source, SourceError};
+
+/// Bytes looked at to detect the format.
+const SNIFF_BYTES: usize = 64;
+
+/// How to read an input, from the command line.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct InputOptions {
+    /// Raw interleaved little-endian samples of this type (no detection).
+    pub raw: Option<RawFormat>,
+    /// Sample rate in Hz: required for raw input and for CSV without a time column or `# fs=`
+    /// comment; wins over a CSV's own rate; a WAV header's rate always wins.
+    pub fs_hz: Option<f64>,
+    /// Channel count: required for raw input; otherwise checked against the input.
+    pub channels: Option<usize>,
+}
+
+/// An opened input: the samples, plus sensors and metadata when it was a recording set.
+pub struct OpenedInput {
+    /// The samples.
+    pub source: Box<dyn Source>,
+    /// Sensor positions (recording sets only).
+    pub sensors: Option<Vec<Sensor>>,
+    /// Metadata (recording sets only).
+    pub meta: Option<RecordingMeta>,
+}
+
+impl OpenedInput {
+    fn plain(source: Box<dyn Source>) -> Self {
+        Self {
+            source,
+            sensors: None,
+            meta: None,
+        }
+    }
+}
+
+/// Describes the first bytes of an input for an error message: hex and printable ASCII.
+fn describe(bytes: &[u8]) -> String {
+    let shown = &bytes[..bytes.len().min(16)];
+    let hex: Vec<String> = shown.iter().map(|b| format!("{b:02x}")).collect();
+    let ascii: String = shown
+        .iter()
+        .map(|&b| {
+            if b.is_ascii_graphic() || b == b' ' {
+                b as char
+            } else {
+                '.'
+            }
+        })
+        .collect();
+    format!("first bytes {} ({ascii:?})", hex.join(" "))
+}
+
+/// Whether the bytes look like text: UTF-8 (a character cut at the end is fine) without control
+/// characters other than tab, CR and LF.
+fn looks_like_text(bytes: &[u8]) -> bool {
+    let valid = match std::str::from_utf8(bytes) {
+        Ok(s) => s,
+        Err(e) if e.error_len().is_none() => {
+            // Incomplete character at the end of the sniffed bytes: judge the valid part.
+            std::str::from_utf8(&bytes[..e.valid_up_to()]).unwrap_or("")
+        }
+        Err(_) => return false,
+    };
+    valid
+        .chars()
+        .all(|c| !c.is_control() || matches!(c, '\t' | '\r' | '\n'))
+}
+
+fn check_channels(what: &str, source: &dyn Source, opts: &InputOptions) -> Result<(), SourceError> {
+    match opts.channels {
+        Some(n) if n != source.info().channels() => Err(SourceError::ChannelCount {
+            what: what.to_string(),
+            expected: n,
+            got: source.info().channels(),
+        }),
+        _ => Ok(()),
+    }
+}
+
+fn raw_source<R: Read + Send + 'static>(
+    reader: R,
+    what: &str,
+    format: RawFormat,
+    opts: &InputOptions,
+) -> Result<Box<dyn Source>, SourceError> {
+    let fs = opts.fs_hz.ok_or_else(|| SourceError::Setting {
+        what: what.to_string(),
+        detail: format!("raw {format} input needs the sample rate (--fs HZ), none given"),
+    })?;
+    let ch = opts.channels.ok_or_else(|| SourceError::Setting {
+        what: what.to_string(),
+        detail: format!("raw {format} input needs the channel count (--channels N), none given"),
+    })?;
+    Ok(Box::new(RawSource::new(reader, what, format, fs, ch)?))
+}
+
+/// Opens a stream whose format must be detected (or is raw per `opts`). `what` names it in
+/// errors. Generic so that tests can pass a `Cursor` instead of standard input.
+///
+/// Errors: `Empty` for a stream without a byte, `UnrecognisedFormat` for binary data that is
+/// not a WAV, `ChannelCount` when `opts.channels` disagrees, and whatever the format's source
+/// reports for its header.
+pub fn open_stream<R: Read + Send + 'static>(
+    mut reader: R,
+    what: &str,
+    opts: &InputOptions,
+) -> Result<Box<dyn Source>, SourceError> {
+    if let Some(format) = opts.raw {
+        return raw_source(reader, what, format, opts);
+    }
+    let mut head = Vec::with_capacity(SNIFF_BYTES);
+    read_up_to(&mut reader, &mut head, SNIFF_BYTES).map_err(|e| SourceError::Io {
+        what: what.to_string(),
+        source: e,
+    })?;
+    if head.is_empty() {
+        return Err(SourceError::Empty {
+            what: what.to_string(),
+        });
+    }
+    let is_wav = head.starts_with(b"RIFF");
+    let is_text = !is_wav && looks_like_text(&head);
+    if !is_wav && !is_text {
+        return Err(SourceError::UnrecognisedFormat {
+            what: what.to_string(),
+            detail: format!(
+                "expected a WAV stream (starting with RIFF), CSV text, or raw samples with --raw; got {}",
+                describe(&head)
+            ),
+        });
+    }
+    let stream = BufReader::new(Cursor::new(head).chain(reader));
+    let source: Box<dyn Source> = if is_wav {
+        Box::new(WavSource::new(stream, what)?)
+    } else {
+        Box::new(CsvSource::new(stream, what, opts.fs_hz)?)
+    };
+    check_channels(what, source.as_ref(), opts)?;
+    Ok(source)
+}
+
+/// Opens `path`: `-` is standard input (detected, or raw per `opts`), a directory is a
+/// recording set, a `.wav`/`.csv` file is read as such, any other file is detected like
+/// standard input.
+pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, SourceError> {
+    if path == "-" {
+        return open_stream(std::io::stdin(), "standard input", opts).map(OpenedInput::plain);
+    }
+    let p = Path::new(path);
+    if p.is_dir() {
+        let set = open_recording_set(p)?;
+        check_channels(path, set.source.as_ref(), opts)?;
+        return Ok(OpenedInput {
+            source: set.source,
+            sensors: Some(set.sensors),
+            meta: Some(set.meta),
+        });
+    }
+    let file = File::open(p).map_err(|e| SourceError::Io {
+        what: path.to_string(),
+        source: e,
+    })?;
+    let ext = p
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let source: Box<dyn Source> = match (opts.raw, ext.as_deref()) {
+        (None, Some("wav")) => Box::new(WavSource::new(BufReader::new(file), path)?),
+        (None, Some("csv")) => Box::new(CsvSource::new(BufReader::new(file), path, opts.fs_hz)?),
+        _ => open_stream(file, path, opts)?,
+    };
+    check_channels(path, source.as_ref(), opts)?;
+    Ok(OpenedInput::plain(source))
+}

@@ -1,0 +1,294 @@
+//! Streaming WAV reader for non-seekable inputs (files, pipes, standard input).
+//!
+//! hound needs the data chunk length to be exact, so the header is parsed here (the same
+//! formats hound reads: 8/16/24/32-bit integer PCM, 32-bit float, WAVE_FORMAT_EXTENSIBLE with a
+//! PCM or float sub-format; 64-bit float as well) and the data chunk is streamed in blocks.
+//! A data chunk length of 0 or 0xFFFFFFFF, as streaming writers emit when the length is not
+//! known yet, means "read to the end of the stream". Limitation: in that case any chunk after
+//! the data chunk would be read as samples (streaming writers put nothing after it).
+
+use std::io::{self, Read};
+
+use super::frames::{Codec, FrameReader};
+use super::{Block, SignalInfo, Source, SourceError};
+
+/// What a WAV header says about the samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WavHeader {
+    /// Samples per second per channel (the truth for the sample rate).
+    pub sample_rate_hz: u32,
+    /// Number of interleaved channels.
+    pub channels: usize,
+    /// Whether the samples are integers (scaled to [-1, 1) by default) or floats.
+    pub is_float: bool,
+    /// Bytes per sample in the data chunk.
+    pub bytes_per_sample: usize,
+    /// Length of the data chunk in bytes; `None` when unknown (0 or 0xFFFFFFFF in the header).
+    pub data_bytes: Option<u64>,
+}
+
+fn malformed(what: &str, detail: String) -> SourceError {
+    SourceError::Malformed {
+        what: what.to_string(),
+        format: "wav",
+        detail,
+    }
+}
+
+/// Reads exactly `buf.len()` bytes; a short read is `Truncated` naming `part`.
+fn read_exact_or<R: Read>(
+    r: &mut R,
+    buf: &mut [u8],
+    what: &str,
+    part: &str,
+) -> Result<(), SourceError> {
+    let mut n = 0;
+    while n < buf.len() {
+        match r.read(&mut buf[n..]) {
+            Ok(0) => {
+                if n == 0 && part == "RIFF header" {
+                    return Err(SourceError::Empty {
+                        what: what.to_string(),
+                    });
+                }
+                return Err(SourceError::Truncated {
+                    what: what.to_string(),
+                    expected: format!("{} bytes of the {part}", buf.len()),
+                    got: format!("{n} bytes"),
+                });
+            }
+            Ok(k) => n += k,
+            Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+            Err(e) => {
+                return Err(SourceError::Io {
+                    what: what.to_string(),
+                    source: e,
+                })
+            }
+        }
+    }
+    Ok(())
+}
+
+fn u16_at(b: &[u8], i: usize) -> u16 {
+    u16::from_le_bytes([b[i], b[i + 1]])
+}
+
+fn u32_at(b: &[u8], i: usize) -> u32 {
+    u32::from_le_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]])
+}
+
+/// Parses a `fmt ` chunk body into (rate, channels, codec).
+fn parse_fmt(b: &[u8], what: &str) -> Result<(u32, usize, Codec), SourceError> {
+    if b.len() < 16 {
+        return Err(malformed(
+            what,
+            format!("fmt chunk of at least 16 bytes expected, got {}", b.len()),
+        ));
+    }
+    let mut tag = u16_at(b, 0);
+    let channels = usize::from(u16_at(b, 2));
+    let rate = u32_at(b, 4);
+    let block_align = usize::from(u16_at(b, 12));
+    let bits = u16_at(b, 14);
+    if tag == 0xFFFE {
+        if b.len() < 40 {
+            return Err(malformed(
+                what,
+                format!(
+                    "WAVE_FORMAT_EXTENSIBLE fmt chunk of 40 bytes expected, got {}",
+                    b.len()
+                ),
+            ));
+        }
+        // The sub-format GUID starts with the format tag it stands for.
+        tag = u16_at(b, 24);
+    }
+    if channels == 0 {
+        return Err(malformed(what, "at least 1 channel expected, got 0".into()));
+    }
+    if rate == 0 {
+        return Err(malformed(
+            what,
+            "positive sample rate expected, got 0 Hz".into(),
+        ));
+    }
+    let container = block_align / channels;
+    if container == 0 || block_align % channels != 0 {
+        return Err(malformed(
+            what,
+            format!("block align a multiple of {channels} channels expected, got {block_align}"),
+        ));
+    }
+    let codec = match (tag, container) {
+        (1, 1) => Codec::U8,
+        (1, 2..=4) => Codec::Int(container),
+        (3, 4) => Codec::F32,
+        (3, 8) => Codec::F64,
+        _ => {
+            return Err(malformed(
+                what,
+                format!(
+                "integer PCM (tag 1) of 8/16/24/32 bits or float (tag 3) of 32/64 bits expected, \
+                     got format tag {tag} with {bits} bits in {container}-byte samples"
+            ),
+            ))
+        }
+    };
+    Ok((rate, channels, codec))
+}
+
+/// Reads a WAV header up to the start of the data chunk, skipping other chunks.
+/// Returns the header and the codec of the samples.
+fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), SourceError> {
+    let mut riff = [0u8; 12];
+    read_exact_or(r, &mut riff, what, "RIFF header")?;
+    if &riff[0..4] != b"RIFF" || &riff[8..12] != b"WAVE" {
+        return Err(SourceError::UnrecognisedFormat {
+            what: what.to_string(),
+            detail: format!(
+                "expected a WAV file starting with \"RIFF....WAVE\", got {:?}",
+                String::from_utf8_lossy(&riff)
+            ),
+        });
+    }
+    let mut fmt: Option<(u32, usize, Codec)> = None;
+    loop {
+        let mut ch = [0u8; 8];
+        read_exact_or(r, &mut ch, what, "chunk header before the data chunk")?;
+        let id = [ch[0], ch[1], ch[2], ch[3]];
+        let len = u32_at(&ch, 4);
+        match &id {
+            b"fmt " => {
+                if len > 65_536 {
+                    return Err(malformed(
+                        what,
+                        format!("fmt chunk of at most 65536 bytes expected, got {len}"),
+                    ));
+                }
+                let mut body = vec![0u8; len as usize + (len as usize & 1)];
+                read_exact_or(r, &mut body, what, "fmt chunk")?;
+                fmt = Some(parse_fmt(&body, what)?);
+            }
+            b"data" => {
+                let (rate, channels, codec) = fmt.ok_or_else(|| {
+                    malformed(what, "fmt chunk expected before the data chunk".into())
+                })?;
+                let data_bytes = match len {
+                    0 | u32::MAX => None,
+                    n => Some(u64::from(n)),
+                };
+                let fb = (channels * codec.bytes()) as u64;
+                if let Some(n) = data_bytes {
+                    if n % fb != 0 {
+                        return Err(malformed(
+                            what,
+                            format!("data chunk length a multiple of the {fb}-byte frame expected, got {n} bytes"),
+                        ));
+                    }
+                }
+                let header = WavHeader {
+                    sample_rate_hz: rate,
+                    channels,
+                    is_float: !codec.is_int(),
+                    bytes_per_sample: codec.bytes(),
+                    data_bytes,
+                };
+                return Ok((header, codec));
+            }
+            _ => {
+                let skip = u64::from(len) + u64::from(len & 1);
+                let skipped =
+                    io::copy(&mut r.take(skip), &mut io::sink()).map_err(|e| SourceError::Io {
+                        what: what.to_string(),
+                        source: e,
+                    })?;
+                if skipped < skip {
+                    return Err(SourceError::Truncated {
+                        what: what.to_string(),
+                        expected: format!(
+                            "{skip} bytes of chunk {:?} before the data chunk",
+                            String::from_utf8_lossy(&id)
+                        ),
+                        got: format!("{skipped} bytes"),
+                    });
+                }
+            }
+        }
+    }
+}
+
+/// A [`Source`] that streams a WAV from any reader, block by block, without loading it whole.
+///
+/// Integer samples are scaled to [-1, 1) (divided by 2^(bits-1); 8-bit is unsigned with offset
+/// 128) unless [`WavSource::with_int_scale`] gives the physical units per count. Float samples
+/// are passed as they are. Channels are named `ch0`, `ch1`, ….
+pub struct WavSource<R: Read + Send> {
+    header: WavHeader,
+    info: SignalInfo,
+    frames: FrameReader<R>,
+    codec: Codec,
+}
+
+impl<R: Read + Send> WavSource<R> {
+    /// Reads the header from `reader`; `what` names the input in error messages.
+    pub fn new(mut reader: R, what: impl Into<String>) -> Result<Self, SourceError> {
+        let what = what.into();
+        let (header, codec) = read_header(&mut reader, &what)?;
+        let info = SignalInfo {
+            sample_rate_hz: f64::from(header.sample_rate_hz),
+            channel_names: (0..header.channels).map(|k| format!("ch{k}")).collect(),
+        };
+        let frames = FrameReader::new(
+            reader,
+            codec,
+            header.channels,
+            codec.full_scale(),
+            header.data_bytes,
+            what,
+        );
+        Ok(Self {
+            header,
+            info,
+            frames,
+            codec,
+        })
+    }
+
+    /// Multiplies integer counts by `scale` instead of mapping them to [-1, 1) (physical units
+    /// per count, as a recording set's `meta.json` `scale`). No effect on float WAVs.
+    pub fn with_int_scale(mut self, scale: f64) -> Self {
+        if self.codec.is_int() {
+            self.frames.set_scale(scale);
+        }
+        self
+    }
+
+    /// Replaces the channel names (for example by sensor ids). Errors when the count differs.
+    pub fn with_channel_names(mut self, names: Vec<String>) -> Result<Self, SourceError> {
+        if names.len() != self.header.channels {
+            return Err(SourceError::ChannelCount {
+                what: self.frames.what().to_string(),
+                expected: names.len(),
+                got: self.header.channels,
+            });
+        }
+        self.info.channel_names = names;
+        Ok(self)
+    }
+
+    /// What the header said.
+    pub fn header(&self) -> &WavHeader {
+        &self.header
+    }
+}
+
+impl<R: Read + Send> Source for WavSource<R> {
+    fn info(&self) -> &SignalInfo {
+        &self.info
+    }
+
+    fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
+        self.frames.read_block(max_frames, block)
+    }
+}
