@@ -2,9 +2,9 @@
 
 use std::path::PathBuf;
 
+use clap::Parser;
 use dampscope::analysis::sweep::SweepConfig;
 use dampscope::cli::compare::{run, sweep_to_dir, CompareArgs};
-use clap::Parser;
 
 fn temp_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dampscope-{name}-{}", std::process::id()));
@@ -33,7 +33,9 @@ fn reduced_sweep_writes_csv_and_png_with_expected_physics() {
     // 800 Hz, D = 2 %: T60 = 69 ms, far too short for 100 ms hops.
     let fast = rows
         .iter()
-        .find(|r| r.case == "single" && r.front_end == "stft-200ms" && r.f_hz == 800.0 && r.d_true == 0.02)
+        .find(|r| {
+            r.case == "single" && r.front_end == "stft-200ms" && r.f_hz == 800.0 && r.d_true == 0.02
+        })
         .unwrap();
     assert_eq!(fast.d_est, None, "{fast:?}");
     assert!(fast.flags.contains("too_few_frames"), "{fast:?}");
@@ -74,12 +76,16 @@ fn compare_reads_a_csv_and_writes_a_side_by_side_table() {
     let out = std::fs::read_to_string(dir.join("compare.csv")).unwrap();
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines.len(), 4, "{out}");
-    assert!(lines[1].contains(",stft,") && lines[1].contains("too_few_frames"), "{out}");
+    assert!(
+        lines[1].contains(",stft,") && lines[1].contains("too_few_frames"),
+        "{out}"
+    );
     let goyder: Vec<&str> = lines[2].split(',').collect();
     assert_eq!(goyder[3], "goyder");
     let d: f64 = goyder[4].parse().unwrap();
     assert!((d - 1.0).abs() < 0.02, "D = {d} %");
-    let bad = Wrapper::try_parse_from(["compare", input.to_str().unwrap(), "--front-ends", "fft"]).unwrap();
+    let bad = Wrapper::try_parse_from(["compare", input.to_str().unwrap(), "--front-ends", "fft"])
+        .unwrap();
     assert!(run(&bad.args).is_err());
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -185,7 +185,11 @@ fn run_case(cfg: &SweepConfig, pair: bool, f: f64, d: f64) -> Result<Vec<SweepRo
 /// Rows come back in a fixed order (case, f, D, front end).
 pub fn run_sweep(cfg: &SweepConfig) -> Result<Vec<SweepRow>> {
     let nyq = 0.5 * cfg.fs_hz;
-    if let Some(f) = cfg.freqs_hz.iter().find(|f| !(**f > 0.0 && **f * 1.15 < nyq)) {
+    if let Some(f) = cfg
+        .freqs_hz
+        .iter()
+        .find(|f| !(**f > 0.0 && **f * 1.15 < nyq))
+    {
         return Err(Error::setting(
             "sweep",
             format!("expected frequencies above 0 and below 0.87 × Nyquist ({nyq} Hz), got {f}"),
@@ -227,8 +231,12 @@ pub fn run_sweep(cfg: &SweepConfig) -> Result<Vec<SweepRow>> {
         let mut all: Vec<(usize, Result<Vec<SweepRow>>)> = handles
             .into_iter()
             .flat_map(|h| {
-                h.join()
-                    .unwrap_or_else(|_| vec![(usize::MAX, Err(Error::setting("sweep", "a worker thread panicked")))])
+                h.join().unwrap_or_else(|_| {
+                    vec![(
+                        usize::MAX,
+                        Err(Error::setting("sweep", "a worker thread panicked")),
+                    )]
+                })
             })
             .collect();
         all.sort_by_key(|(i, _)| *i);

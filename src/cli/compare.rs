@@ -87,7 +87,11 @@ impl From<DirectionArg> for FilterDirection {
 
 /// Resolves the band options for one decay: the keywords `auto`, `octave` and `third-octave`
 /// in `--bands` (others as for analyze). Returns the bands and warnings to show.
-pub fn resolve_bands(args: &BandArgs, decay: &[f64], fs_hz: f64) -> Result<(Vec<Band>, Vec<String>)> {
+pub fn resolve_bands(
+    args: &BandArgs,
+    decay: &[f64],
+    fs_hz: f64,
+) -> Result<(Vec<Band>, Vec<String>)> {
     let mut bands = Vec::new();
     let mut warnings = Vec::new();
     let mut plain = args.clone();
@@ -169,13 +173,27 @@ fn table_line(channel: &str, band: &Band, fe: &dyn FrontEnd, e: &DecayEstimate) 
         format!("{:.3}", r.frame_period_s * 1e3),
         format!("{:.3}", r.time_resolution_s * 1e3),
         format!("{:.3}", r.frequency_resolution_hz),
-        e.flags.iter().map(|f| f.as_str()).collect::<Vec<_>>().join(";"),
+        e.flags
+            .iter()
+            .map(|f| f.as_str())
+            .collect::<Vec<_>>()
+            .join(";"),
     ]
 }
 
 const HEADER: [&str; 12] = [
-    "channel", "band_hz", "nominal_hz", "front_end", "d_pct", "t60_s", "r2", "n_points",
-    "frame_ms", "t_res_ms", "f_res_hz", "flags",
+    "channel",
+    "band_hz",
+    "nominal_hz",
+    "front_end",
+    "d_pct",
+    "t60_s",
+    "r2",
+    "n_points",
+    "frame_ms",
+    "t_res_ms",
+    "f_res_hz",
+    "flags",
 ];
 
 fn read_all(args: &CompareArgs, input: &str) -> anyhow::Result<(f64, Vec<String>, Vec<Vec<f64>>)> {
@@ -292,7 +310,8 @@ pub fn sweep_to_dir(cfg: &SweepConfig, dir: &Path) -> Result<Vec<SweepRow>> {
 
 /// Per front end and case: cases with an estimate, within 2 % and 5 %, and the median |error|.
 pub fn sweep_summary(rows: &[SweepRow]) -> String {
-    let mut out = String::from("case    front_end     estimates  within_2%  within_5%  median_|err|_%\n");
+    let mut out =
+        String::from("case    front_end     estimates  within_2%  within_5%  median_|err|_%\n");
     for case in ["single", "pair"] {
         for fe in SWEEP_FRONT_ENDS {
             let sel: Vec<&SweepRow> = rows
@@ -305,7 +324,9 @@ pub fn sweep_summary(rows: &[SweepRow]) -> String {
             let mut errs: Vec<f64> = sel.iter().filter_map(|r| r.rel_err.map(f64::abs)).collect();
             errs.sort_by(f64::total_cmp);
             let within = |t: f64| errs.iter().filter(|e| **e < t).count();
-            let median = errs.get(errs.len() / 2).map_or("-".into(), |m| format!("{:.2}", m * 100.0));
+            let median = errs
+                .get(errs.len() / 2)
+                .map_or("-".into(), |m| format!("{:.2}", m * 100.0));
             let _ = writeln!(
                 out,
                 "{case:<7} {fe:<13} {:>4}/{:<4}  {:>9}  {:>9}  {median:>14}",

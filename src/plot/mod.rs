@@ -91,15 +91,26 @@ pub fn sweep_heatmap(rows: &[SweepRow], path: &Path) -> Result<()> {
             .draw(&Rectangle::new([(x, 60), (x + 30, 85)], c.filled()))
             .map_err(plot_err)?;
         title
-            .draw(&Text::new(*label, (x + 38, 62), ("sans-serif", 20).into_font()))
+            .draw(&Text::new(
+                *label,
+                (x + 38, 62),
+                ("sans-serif", 20).into_font(),
+            ))
             .map_err(plot_err)?;
     }
     let x = 20 + 230 * CLASSES.len() as i32;
     title
-        .draw(&Rectangle::new([(x, 60), (x + 30, 85)], NO_ESTIMATE.filled()))
+        .draw(&Rectangle::new(
+            [(x, 60), (x + 30, 85)],
+            NO_ESTIMATE.filled(),
+        ))
         .map_err(plot_err)?;
     title
-        .draw(&Text::new("no estimate", (x + 38, 62), ("sans-serif", 20).into_font()))
+        .draw(&Text::new(
+            "no estimate",
+            (x + 38, 62),
+            ("sans-serif", 20).into_font(),
+        ))
         .map_err(plot_err)?;
 
     let panels = body.split_evenly((cases.len(), SWEEP_FRONT_ENDS.len()));
@@ -132,10 +143,16 @@ pub fn sweep_heatmap(rows: &[SweepRow], path: &Path) -> Result<()> {
         chart
             .draw_series(cells.map(|(i, j)| {
                 let row = rows.iter().find(|r| {
-                    r.case == case && r.front_end == fe && r.f_hz == freqs[i] && r.d_true == damps[j]
+                    r.case == case
+                        && r.front_end == fe
+                        && r.f_hz == freqs[i]
+                        && r.d_true == damps[j]
                 });
                 Rectangle::new(
-                    [(i as f64 - 0.46, j as f64 - 0.46), (i as f64 + 0.46, j as f64 + 0.46)],
+                    [
+                        (i as f64 - 0.46, j as f64 - 0.46),
+                        (i as f64 + 0.46, j as f64 + 0.46),
+                    ],
                     colour(row).filled(),
                 )
             }))
