@@ -129,7 +129,7 @@ fn bandpass_response_matches_butterworth_at_the_edges() {
     }
     // Analytic: |H| = 1 at the (pre-warped) centre, 1/√2 (−3.01 dB) at both exact edges,
     // ≈ −(order·6 dB per octave of the prototype) far away.
-    let (lo, hi) = (707.945_784_384_137_9, 1412.537_544_622_754);
+    let (lo, hi) = (707.945_784_384_137_9, 1_412.537_544_622_754);
     for fs in [48_000.0, 3000.0] {
         // fs = 3000 Hz: the upper edge sits near Nyquist, the pre-warped band is very wide and the
         // real prototype pole gives two real band-pass poles; the edges must still be at −3 dB.

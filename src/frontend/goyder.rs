@@ -291,7 +291,7 @@ impl GoyderFrontEnd {
                 format!("expected a positive sample rate in Hz, got {sample_rate_hz}"),
             ));
         }
-        if !(2..=8).contains(&settings.order) || settings.order % 2 != 0 {
+        if !(2..=8).contains(&settings.order) || !settings.order.is_multiple_of(2) {
             return Err(Error::setting(
                 "goyder order",
                 format!("expected an even order from 2 to 8, got {}", settings.order),
@@ -313,7 +313,7 @@ impl GoyderFrontEnd {
             ));
         }
         let max = settings.max_decay_s * sample_rate_hz;
-        if !(max.is_finite() && max >= 1.0 && max < 1e10) {
+        if !(1.0..1e10).contains(&max) {
             return Err(Error::setting(
                 "goyder max decay",
                 format!(

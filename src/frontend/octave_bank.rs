@@ -157,7 +157,7 @@ impl OctaveBankFrontEnd {
             ));
         }
         let max = settings.max_decay_s * sample_rate_hz;
-        if !(max.is_finite() && max >= 1.0 && max < 1e10) {
+        if !(1.0..1e10).contains(&max) {
             return Err(Error::setting(
                 "octave max decay",
                 format!(
