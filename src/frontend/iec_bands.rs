@@ -72,8 +72,8 @@ pub fn iec_band(fraction: OctaveFraction, x: i32) -> Band {
 /// IEC bands from the first one whose nominal frequency is ≥ `f_min_hz` up to the Nyquist
 /// frequency of `fs_hz` (and at most the 20 kHz band).
 ///
-/// Returns the bands and warnings (not printed): a band whose midband lies below Nyquist but
-/// whose upper edge lies above it is dropped and named in a warning. Errors on a non-finite or
+/// Returns the bands and warnings (not printed): the first band that straddles Nyquist (lower
+/// edge below, upper edge above) is dropped and named in a warning. Errors on a non-finite or
 /// non-positive `fs_hz` or a non-finite `f_min_hz`.
 pub fn iec_bands(
     fraction: OctaveFraction,
@@ -110,7 +110,7 @@ pub fn iec_bands(
             continue;
         }
         if band.hi_hz > nyquist {
-            if band.center_hz < nyquist {
+            if band.lo_hz < nyquist {
                 warnings.push(format!(
                     "{} band {} Hz dropped: its upper edge {:.1} Hz is above the Nyquist frequency {:.1} Hz",
                     if b == 1 { "octave" } else { "third-octave" },
@@ -167,8 +167,9 @@ mod tests {
                 400.0, 500.0, 630.0, 800.0, 1000.0, 1250.0
             ]
         );
-        // 1600 Hz band: midband 1584.9 > 1500 → silently absent; 1250 band edge 1412 < 1500.
-        assert!(w.is_empty(), "{w:?}");
+        // 1600 Hz band: 1425…1778 Hz straddles Nyquist (1500 Hz) → dropped with a warning.
+        assert_eq!(w.len(), 1, "{w:?}");
+        assert!(w[0].contains("1600"), "{w:?}");
         // At fs = 2000 Hz the 1000 Hz third (edge 1122 Hz) straddles Nyquist: warned.
         let (bands, w) = iec_bands(OctaveFraction::Third, 25.0, 2000.0).unwrap();
         assert_eq!(bands.last().unwrap().nominal_hz, 800.0);
