@@ -69,13 +69,12 @@ impl Default for GoyderSettings {
 /// Samples between exact resynchronisations of the heterodyne oscillators.
 const RESYNC_SAMPLES: usize = 512;
 
-/// One biquad section for every band: coefficients and the states of the real and imaginary
-/// paths, each a vector over bands (transposed direct form II).
+/// One low-pass biquad section for every band: coefficients b0, a1, a2 (b1 = 2·b0 and b2 = b0
+/// for a Butterworth low-pass) and the states of the real and imaginary paths, each a vector
+/// over bands (transposed direct form II).
 #[derive(Clone, Debug)]
 struct Section {
     b0: Vec<f64>,
-    b1: Vec<f64>,
-    b2: Vec<f64>,
     a1: Vec<f64>,
     a2: Vec<f64>,
     s1_re: Vec<f64>,
@@ -114,8 +113,6 @@ struct Kernel {
     osc_re: Vec<f64>,
     osc_im: Vec<f64>,
     sections: Vec<Section>,
-    z_re: Vec<f64>,
-    z_im: Vec<f64>,
     prev_re: Vec<f64>,
     prev_im: Vec<f64>,
     acc_e: Vec<f64>,
@@ -129,8 +126,6 @@ impl Kernel {
         let mut sections: Vec<Section> = (0..order / 2)
             .map(|_| Section {
                 b0: vec![0.0; nb],
-                b1: vec![0.0; nb],
-                b2: vec![0.0; nb],
                 a1: vec![0.0; nb],
                 a2: vec![0.0; nb],
                 s1_re: vec![0.0; nb],
@@ -148,8 +143,6 @@ impl Kernel {
             for (s, c) in butterworth_lowpass(order, fc, fs_hz).iter().enumerate() {
                 let sec = &mut sections[s];
                 sec.b0[b] = c[0];
-                sec.b1[b] = c[1];
-                sec.b2[b] = c[2];
                 sec.a1[b] = c[3];
                 sec.a2[b] = c[4];
             }
@@ -165,8 +158,6 @@ impl Kernel {
             osc_re: vec![1.0; nb],
             osc_im: vec![0.0; nb],
             sections,
-            z_re: vec![0.0; nb],
-            z_im: vec![0.0; nb],
             prev_re: vec![0.0; nb],
             prev_im: vec![0.0; nb],
             acc_e: vec![0.0; nb],
@@ -205,50 +196,74 @@ impl Kernel {
     /// Filters one input sample through every band; `accumulate` adds it to the frame sums.
     #[inline]
     fn step(&mut self, x: f64, accumulate: bool) {
+        match (self.sections.len(), accumulate) {
+            (1, true) => self.step_n::<1, true>(x),
+            (1, false) => self.step_n::<1, false>(x),
+            (2, true) => self.step_n::<2, true>(x),
+            (2, false) => self.step_n::<2, false>(x),
+            (3, true) => self.step_n::<3, true>(x),
+            (3, false) => self.step_n::<3, false>(x),
+            (_, true) => self.step_n::<4, true>(x),
+            (_, false) => self.step_n::<4, false>(x),
+        }
+    }
+
+    /// [`Self::step`] for `NS` sections, fused into one loop over the bands (everything of a
+    /// band stays in registers; the loop body vectorises across bands). The sections use the
+    /// low-pass symmetry b1 = 2·b0, b2 = b0 of [`butterworth_lowpass`].
+    #[inline(always)]
+    fn step_n<const NS: usize, const ACC: bool>(&mut self, x: f64) {
         let n = self.freq_hz.len();
-        let (zr, zi) = (&mut self.z_re[..n], &mut self.z_im[..n]);
         let (or, oi) = (&mut self.osc_re[..n], &mut self.osc_im[..n]);
         let (rr, ri) = (&self.rot_re[..n], &self.rot_im[..n]);
+        let (pr, pi) = (&mut self.prev_re[..n], &mut self.prev_im[..n]);
+        let (ae, apr, api) = (
+            &mut self.acc_e[..n],
+            &mut self.acc_pr[..n],
+            &mut self.acc_pi[..n],
+        );
+        let mut secs = self.sections.iter_mut();
+        let mut b0: [&[f64]; NS] = [&[]; NS];
+        let mut a1: [&[f64]; NS] = [&[]; NS];
+        let mut a2: [&[f64]; NS] = [&[]; NS];
+        let mut s1r: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
+        let mut s2r: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
+        let mut s1i: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
+        let mut s2i: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
+        for k in 0..NS {
+            let Some(sec) = secs.next() else { return };
+            b0[k] = &sec.b0[..n];
+            a1[k] = &sec.a1[..n];
+            a2[k] = &sec.a2[..n];
+            s1r[k] = &mut sec.s1_re[..n];
+            s2r[k] = &mut sec.s2_re[..n];
+            s1i[k] = &mut sec.s1_im[..n];
+            s2i[k] = &mut sec.s2_im[..n];
+        }
         for b in 0..n {
             let (c, s) = (or[b], oi[b]);
-            zr[b] = x * c;
-            zi[b] = x * s;
+            let (mut ur, mut ui) = (x * c, x * s);
             or[b] = c * rr[b] - s * ri[b];
             oi[b] = c * ri[b] + s * rr[b];
-        }
-        for sec in &mut self.sections {
-            let (b0, b1, b2) = (&sec.b0[..n], &sec.b1[..n], &sec.b2[..n]);
-            let (a1, a2) = (&sec.a1[..n], &sec.a2[..n]);
-            let (s1r, s2r) = (&mut sec.s1_re[..n], &mut sec.s2_re[..n]);
-            let (s1i, s2i) = (&mut sec.s1_im[..n], &mut sec.s2_im[..n]);
-            for b in 0..n {
-                let (ur, ui) = (zr[b], zi[b]);
-                let yr = b0[b] * ur + s1r[b];
-                let yi = b0[b] * ui + s1i[b];
-                s1r[b] = b1[b] * ur - a1[b] * yr + s2r[b];
-                s1i[b] = b1[b] * ui - a1[b] * yi + s2i[b];
-                s2r[b] = b2[b] * ur - a2[b] * yr;
-                s2i[b] = b2[b] * ui - a2[b] * yi;
-                zr[b] = yr;
-                zi[b] = yi;
+            for k in 0..NS {
+                let (tr, ti) = (b0[k][b] * ur, b0[k][b] * ui);
+                let yr = tr + s1r[k][b];
+                let yi = ti + s1i[k][b];
+                s1r[k][b] = 2.0 * tr - a1[k][b] * yr + s2r[k][b];
+                s1i[k][b] = 2.0 * ti - a1[k][b] * yi + s2i[k][b];
+                s2r[k][b] = tr - a2[k][b] * yr;
+                s2i[k][b] = ti - a2[k][b] * yi;
+                ur = yr;
+                ui = yi;
             }
-        }
-        let (pr, pi) = (&mut self.prev_re[..n], &mut self.prev_im[..n]);
-        if accumulate {
-            let (ae, apr, api) = (
-                &mut self.acc_e[..n],
-                &mut self.acc_pr[..n],
-                &mut self.acc_pi[..n],
-            );
-            for b in 0..n {
-                let (r, i) = (zr[b], zi[b]);
-                ae[b] += r * r + i * i;
-                apr[b] += r * pr[b] + i * pi[b];
-                api[b] += i * pr[b] - r * pi[b];
+            if ACC {
+                ae[b] += ur * ur + ui * ui;
+                apr[b] += ur * pr[b] + ui * pi[b];
+                api[b] += ui * pr[b] - ur * pi[b];
             }
+            pr[b] = ur;
+            pi[b] = ui;
         }
-        pr.copy_from_slice(zr);
-        pi.copy_from_slice(zi);
     }
 
     /// Moves the frame sums into `energy`/`freq` (one frame of `hop` samples) and clears them.
