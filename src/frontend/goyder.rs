@@ -69,18 +69,66 @@ impl Default for GoyderSettings {
 /// Samples between exact resynchronisations of the heterodyne oscillators.
 const RESYNC_SAMPLES: usize = 512;
 
-/// One low-pass biquad section for every band: coefficients b0, a1, a2 (b1 = 2·b0 and b2 = b0
-/// for a Butterworth low-pass) and the states of the real and imaginary paths, each a vector
-/// over bands (transposed direct form II).
-#[derive(Clone, Debug)]
-struct Section {
-    b0: Vec<f64>,
-    a1: Vec<f64>,
-    a2: Vec<f64>,
-    s1_re: Vec<f64>,
-    s2_re: Vec<f64>,
-    s1_im: Vec<f64>,
-    s2_im: Vec<f64>,
+/// Bands per group: the kernel works on groups of `LANES` bands held in fixed-size arrays, so
+/// that the compiler vectorises across the bands of a group (one `&mut` per group: no aliasing
+/// doubts). The last group is padded with inert bands (zero coefficients).
+const LANES: usize = 4;
+/// Most biquad sections per band (order 8).
+const MAX_SECTIONS: usize = 4;
+
+type Lanes = [f64; LANES];
+
+/// Coefficients and states of `LANES` bands: oscillator, low-pass sections (b0, a1, a2 with
+/// b1 = 2·b0 and b2 = b0 for a Butterworth low-pass; transposed direct form II states of the
+/// real and imaginary paths), previous output and the frame sums.
+#[derive(Clone, Copy, Debug, Default)]
+struct Group {
+    rot_re: Lanes,
+    rot_im: Lanes,
+    osc_re: Lanes,
+    osc_im: Lanes,
+    b0: [Lanes; MAX_SECTIONS],
+    a1: [Lanes; MAX_SECTIONS],
+    a2: [Lanes; MAX_SECTIONS],
+    s1r: [Lanes; MAX_SECTIONS],
+    s2r: [Lanes; MAX_SECTIONS],
+    s1i: [Lanes; MAX_SECTIONS],
+    s2i: [Lanes; MAX_SECTIONS],
+    pr: Lanes,
+    pi: Lanes,
+    ae: Lanes,
+    apr: Lanes,
+    api: Lanes,
+}
+
+impl Group {
+    #[inline(always)]
+    fn step<const NS: usize, const ACC: bool>(&mut self, x: f64) {
+        for l in 0..LANES {
+            let (c, s) = (self.osc_re[l], self.osc_im[l]);
+            let (mut ur, mut ui) = (x * c, x * s);
+            self.osc_re[l] = c * self.rot_re[l] - s * self.rot_im[l];
+            self.osc_im[l] = c * self.rot_im[l] + s * self.rot_re[l];
+            for k in 0..NS {
+                let (tr, ti) = (self.b0[k][l] * ur, self.b0[k][l] * ui);
+                let yr = tr + self.s1r[k][l];
+                let yi = ti + self.s1i[k][l];
+                self.s1r[k][l] = 2.0 * tr - self.a1[k][l] * yr + self.s2r[k][l];
+                self.s1i[k][l] = 2.0 * ti - self.a1[k][l] * yi + self.s2i[k][l];
+                self.s2r[k][l] = tr - self.a2[k][l] * yr;
+                self.s2i[k][l] = ti - self.a2[k][l] * yi;
+                ur = yr;
+                ui = yi;
+            }
+            if ACC {
+                self.ae[l] += ur * ur + ui * ui;
+                self.apr[l] += ur * self.pr[l] + ui * self.pi[l];
+                self.api[l] += ui * self.pr[l] - ur * self.pi[l];
+            }
+            self.pr[l] = ur;
+            self.pi[l] = ui;
+        }
+    }
 }
 
 /// Butterworth low-pass of even `order` and cut-off `fc_hz` as biquads, each `[b0, b1, b2, a1, a2]`
@@ -108,95 +156,63 @@ pub fn butterworth_lowpass(order: usize, fc_hz: f64, fs_hz: f64) -> Vec<[f64; 5]
 #[derive(Clone, Debug)]
 struct Kernel {
     freq_hz: Vec<f64>,
-    rot_re: Vec<f64>,
-    rot_im: Vec<f64>,
-    osc_re: Vec<f64>,
-    osc_im: Vec<f64>,
-    sections: Vec<Section>,
-    prev_re: Vec<f64>,
-    prev_im: Vec<f64>,
-    acc_e: Vec<f64>,
-    acc_pr: Vec<f64>,
-    acc_pi: Vec<f64>,
+    sections: usize,
+    groups: Vec<Group>,
 }
 
 impl Kernel {
     fn new(bands: &[Band], order: usize, fs_hz: f64) -> Self {
         let nb = bands.len();
-        let mut sections: Vec<Section> = (0..order / 2)
-            .map(|_| Section {
-                b0: vec![0.0; nb],
-                a1: vec![0.0; nb],
-                a2: vec![0.0; nb],
-                s1_re: vec![0.0; nb],
-                s2_re: vec![0.0; nb],
-                s1_im: vec![0.0; nb],
-                s2_im: vec![0.0; nb],
-            })
-            .collect();
+        let mut groups = vec![Group::default(); nb.div_ceil(LANES)];
         let mut freq_hz = Vec::with_capacity(nb);
-        let (mut rot_re, mut rot_im) = (Vec::with_capacity(nb), Vec::with_capacity(nb));
         for (b, band) in bands.iter().enumerate() {
+            let (g, l) = (&mut groups[b / LANES], b % LANES);
             let f_h = 0.5 * (band.lo_hz + band.hi_hz);
             // Bands beyond Nyquist are flagged by the pipeline; keep the design well-defined.
             let fc = (0.5 * band.width_hz()).min(0.45 * fs_hz);
-            for (s, c) in butterworth_lowpass(order, fc, fs_hz).iter().enumerate() {
-                let sec = &mut sections[s];
-                sec.b0[b] = c[0];
-                sec.a1[b] = c[3];
-                sec.a2[b] = c[4];
+            for (k, c) in butterworth_lowpass(order, fc, fs_hz).iter().enumerate() {
+                g.b0[k][l] = c[0];
+                g.a1[k][l] = c[3];
+                g.a2[k][l] = c[4];
             }
             let w = -2.0 * std::f64::consts::PI * f_h / fs_hz;
-            rot_re.push(w.cos());
-            rot_im.push(w.sin());
+            g.rot_re[l] = w.cos();
+            g.rot_im[l] = w.sin();
             freq_hz.push(f_h);
         }
         Kernel {
             freq_hz,
-            rot_re,
-            rot_im,
-            osc_re: vec![1.0; nb],
-            osc_im: vec![0.0; nb],
-            sections,
-            prev_re: vec![0.0; nb],
-            prev_im: vec![0.0; nb],
-            acc_e: vec![0.0; nb],
-            acc_pr: vec![0.0; nb],
-            acc_pi: vec![0.0; nb],
+            sections: order / 2,
+            groups,
         }
     }
 
     fn clear(&mut self) {
-        for s in &mut self.sections {
-            for v in [&mut s.s1_re, &mut s.s2_re, &mut s.s1_im, &mut s.s2_im] {
-                v.iter_mut().for_each(|x| *x = 0.0);
+        for g in &mut self.groups {
+            for v in [&mut g.s1r, &mut g.s2r, &mut g.s1i, &mut g.s2i] {
+                *v = [[0.0; LANES]; MAX_SECTIONS];
             }
-        }
-        for v in [
-            &mut self.prev_re,
-            &mut self.prev_im,
-            &mut self.acc_e,
-            &mut self.acc_pr,
-            &mut self.acc_pi,
-        ] {
-            v.iter_mut().for_each(|x| *x = 0.0);
+            for v in [&mut g.pr, &mut g.pi, &mut g.ae, &mut g.apr, &mut g.api] {
+                *v = [0.0; LANES];
+            }
         }
     }
 
     /// Sets the oscillators exactly to e^{−j2π f_h m / fs}.
     fn resync(&mut self, m: usize, fs_hz: f64) {
-        for b in 0..self.freq_hz.len() {
-            let cycles = (self.freq_hz[b] * m as f64 / fs_hz).fract();
+        for (b, f) in self.freq_hz.iter().enumerate() {
+            let cycles = (f * m as f64 / fs_hz).fract();
             let (s, c) = (-2.0 * std::f64::consts::PI * cycles).sin_cos();
-            self.osc_re[b] = c;
-            self.osc_im[b] = s;
+            let g = &mut self.groups[b / LANES];
+            g.osc_re[b % LANES] = c;
+            g.osc_im[b % LANES] = s;
         }
     }
 
     /// Filters one input sample through every band; `accumulate` adds it to the frame sums.
     #[inline]
     fn step(&mut self, x: f64, accumulate: bool) {
-        match (self.sections.len(), accumulate) {
+        match (self.sections, accumulate) {
             (1, true) => self.step_n::<1, true>(x),
             (1, false) => self.step_n::<1, false>(x),
             (2, true) => self.step_n::<2, true>(x),
@@ -208,77 +224,27 @@ impl Kernel {
         }
     }
 
-    /// [`Self::step`] for `NS` sections, fused into one loop over the bands (everything of a
-    /// band stays in registers; the loop body vectorises across bands). The sections use the
-    /// low-pass symmetry b1 = 2·b0, b2 = b0 of [`butterworth_lowpass`].
     #[inline(always)]
     fn step_n<const NS: usize, const ACC: bool>(&mut self, x: f64) {
-        let n = self.freq_hz.len();
-        let (or, oi) = (&mut self.osc_re[..n], &mut self.osc_im[..n]);
-        let (rr, ri) = (&self.rot_re[..n], &self.rot_im[..n]);
-        let (pr, pi) = (&mut self.prev_re[..n], &mut self.prev_im[..n]);
-        let (ae, apr, api) = (
-            &mut self.acc_e[..n],
-            &mut self.acc_pr[..n],
-            &mut self.acc_pi[..n],
-        );
-        let mut secs = self.sections.iter_mut();
-        let mut b0: [&[f64]; NS] = [&[]; NS];
-        let mut a1: [&[f64]; NS] = [&[]; NS];
-        let mut a2: [&[f64]; NS] = [&[]; NS];
-        let mut s1r: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
-        let mut s2r: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
-        let mut s1i: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
-        let mut s2i: [&mut [f64]; NS] = std::array::from_fn(|_| &mut [][..]);
-        for k in 0..NS {
-            let Some(sec) = secs.next() else { return };
-            b0[k] = &sec.b0[..n];
-            a1[k] = &sec.a1[..n];
-            a2[k] = &sec.a2[..n];
-            s1r[k] = &mut sec.s1_re[..n];
-            s2r[k] = &mut sec.s2_re[..n];
-            s1i[k] = &mut sec.s1_im[..n];
-            s2i[k] = &mut sec.s2_im[..n];
-        }
-        for b in 0..n {
-            let (c, s) = (or[b], oi[b]);
-            let (mut ur, mut ui) = (x * c, x * s);
-            or[b] = c * rr[b] - s * ri[b];
-            oi[b] = c * ri[b] + s * rr[b];
-            for k in 0..NS {
-                let (tr, ti) = (b0[k][b] * ur, b0[k][b] * ui);
-                let yr = tr + s1r[k][b];
-                let yi = ti + s1i[k][b];
-                s1r[k][b] = 2.0 * tr - a1[k][b] * yr + s2r[k][b];
-                s1i[k][b] = 2.0 * ti - a1[k][b] * yi + s2i[k][b];
-                s2r[k][b] = tr - a2[k][b] * yr;
-                s2i[k][b] = ti - a2[k][b] * yi;
-                ur = yr;
-                ui = yi;
-            }
-            if ACC {
-                ae[b] += ur * ur + ui * ui;
-                apr[b] += ur * pr[b] + ui * pi[b];
-                api[b] += ui * pr[b] - ur * pi[b];
-            }
-            pr[b] = ur;
-            pi[b] = ui;
+        for g in &mut self.groups {
+            g.step::<NS, ACC>(x);
         }
     }
 
     /// Moves the frame sums into `energy`/`freq` (one frame of `hop` samples) and clears them.
     fn take_frame(&mut self, hop: usize, fs_hz: f64, energy: &mut [f64], freq: &mut [f64]) {
-        for b in 0..self.freq_hz.len() {
-            energy[b] = 2.0 * self.acc_e[b] / hop as f64;
-            let (re, im) = (self.acc_pr[b], self.acc_pi[b]);
+        for (b, f_h) in self.freq_hz.iter().enumerate() {
+            let (g, l) = (&mut self.groups[b / LANES], b % LANES);
+            energy[b] = 2.0 * g.ae[l] / hop as f64;
+            let (re, im) = (g.apr[l], g.api[l]);
             freq[b] = if re == 0.0 && im == 0.0 {
                 f64::NAN
             } else {
-                self.freq_hz[b] + im.atan2(re) * fs_hz / (2.0 * std::f64::consts::PI)
+                f_h + im.atan2(re) * fs_hz / (2.0 * std::f64::consts::PI)
             };
-            self.acc_e[b] = 0.0;
-            self.acc_pr[b] = 0.0;
-            self.acc_pi[b] = 0.0;
+            g.ae[l] = 0.0;
+            g.apr[l] = 0.0;
+            g.api[l] = 0.0;
         }
     }
 }
