@@ -209,25 +209,52 @@ impl Kernel {
         }
     }
 
-    /// Filters one input sample through every band; `accumulate` adds it to the frame sums.
-    #[inline]
-    fn step(&mut self, x: f64, accumulate: bool) {
+    /// Filters `xs` (in reverse order when `reversed`) through every band; `accumulate` adds
+    /// the outputs to the frame sums. Uses AVX2 when the CPU has it (checked at run time).
+    fn filter_span(&mut self, xs: &[f64], reversed: bool, accumulate: bool) {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2 (checked just above); the function has no other
+                // requirement.
+                unsafe { self.filter_span_avx2(xs, reversed, accumulate) };
+                return;
+            }
+        }
+        self.filter_span_generic(xs, reversed, accumulate);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn filter_span_avx2(&mut self, xs: &[f64], reversed: bool, accumulate: bool) {
+        self.filter_span_generic(xs, reversed, accumulate);
+    }
+
+    #[inline(always)]
+    fn filter_span_generic(&mut self, xs: &[f64], reversed: bool, accumulate: bool) {
         match (self.sections, accumulate) {
-            (1, true) => self.step_n::<1, true>(x),
-            (1, false) => self.step_n::<1, false>(x),
-            (2, true) => self.step_n::<2, true>(x),
-            (2, false) => self.step_n::<2, false>(x),
-            (3, true) => self.step_n::<3, true>(x),
-            (3, false) => self.step_n::<3, false>(x),
-            (_, true) => self.step_n::<4, true>(x),
-            (_, false) => self.step_n::<4, false>(x),
+            (1, true) => self.span_n::<1, true>(xs, reversed),
+            (1, false) => self.span_n::<1, false>(xs, reversed),
+            (2, true) => self.span_n::<2, true>(xs, reversed),
+            (2, false) => self.span_n::<2, false>(xs, reversed),
+            (3, true) => self.span_n::<3, true>(xs, reversed),
+            (3, false) => self.span_n::<3, false>(xs, reversed),
+            (_, true) => self.span_n::<4, true>(xs, reversed),
+            (_, false) => self.span_n::<4, false>(xs, reversed),
         }
     }
 
     #[inline(always)]
-    fn step_n<const NS: usize, const ACC: bool>(&mut self, x: f64) {
-        for g in &mut self.groups {
-            g.step::<NS, ACC>(x);
+    fn span_n<const NS: usize, const ACC: bool>(&mut self, xs: &[f64], reversed: bool) {
+        let mut one = |x: f64| {
+            for g in &mut self.groups {
+                g.step::<NS, ACC>(x);
+            }
+        };
+        if reversed {
+            xs.iter().rev().for_each(|&x| one(x));
+        } else {
+            xs.iter().for_each(|&x| one(x));
         }
     }
 
@@ -394,31 +421,48 @@ impl FrontEnd for GoyderFrontEnd {
         let fs = self.sample_rate_hz;
         let kernel = &mut self.kernel;
         kernel.clear();
+        let buffer = &self.buffer;
+        let mut flush = |kernel: &mut Kernel, k: usize| {
+            let range = k * nb..(k + 1) * nb;
+            kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
+        };
+        // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
+        // samples), frame boundaries, and the start of the kept part (reversed mode).
         match self.settings.direction {
             FilterDirection::Reversed => {
-                for (m, n) in (0..n_total).rev().enumerate() {
+                let (mut n_end, mut m) = (n_total, 0usize);
+                while n_end > 0 {
                     if m % RESYNC_SAMPLES == 0 {
                         kernel.resync(m, fs);
                     }
-                    kernel.step(self.buffer[n], n < used);
-                    if n < used && n % hop == 0 {
-                        let k = n / hop;
-                        let range = k * nb..(k + 1) * nb;
-                        kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
+                    let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
+                    let lo = if n_end > used {
+                        used.max(cap)
+                    } else {
+                        ((n_end - 1) / hop * hop).max(cap)
+                    };
+                    kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
+                    m += n_end - lo;
+                    if n_end <= used && lo % hop == 0 {
+                        flush(kernel, lo / hop);
                     }
+                    n_end = lo;
                 }
             }
             FilterDirection::Forward => {
-                for n in 0..used {
-                    if n % RESYNC_SAMPLES == 0 {
-                        kernel.resync(n, fs);
+                let mut n0 = 0;
+                while n0 < used {
+                    if n0 % RESYNC_SAMPLES == 0 {
+                        kernel.resync(n0, fs);
                     }
-                    kernel.step(self.buffer[n], true);
-                    if (n + 1) % hop == 0 {
-                        let k = n / hop;
-                        let range = k * nb..(k + 1) * nb;
-                        kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
+                    let n1 = used
+                        .min((n0 / hop + 1) * hop)
+                        .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
+                    kernel.filter_span(&buffer[n0..n1], false, true);
+                    if n1 % hop == 0 {
+                        flush(kernel, n1 / hop - 1);
                     }
+                    n0 = n1;
                 }
             }
         }
