@@ -92,6 +92,7 @@ fn long_piped_stream_gives_results_early_and_bounded_memory() {
     );
     assert_eq!(rows.load(Ordering::SeqCst), decays);
     assert!(good.load(Ordering::SeqCst) >= decays - 1, "estimates off");
+    eprintln!("VmHWM after 1/4 of the input: {hwm_early} KiB, at the end: {hwm_late} KiB; rows before close: {rows_before_close}");
     // Peak memory after 4× more input may not have grown by more than 2 MiB.
     assert!(hwm_early > 0, "could not read VmHWM");
     assert!(

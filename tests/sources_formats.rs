@@ -346,8 +346,8 @@ fn csv_errors_come_after_the_good_rows() {
 fn csv_block_sizes_agree() {
     let sig = test_signal(2, 403);
     let mut text = String::from("time,x,y\n");
-    for i in 0..403 {
-        text += &format!("{},{},{}\n", i as f64 / 1000.0, sig[0][i], sig[1][i]);
+    for (i, (a, b)) in sig[0].iter().zip(&sig[1]).enumerate() {
+        text += &format!("{},{a},{b}\n", i as f64 / 1000.0);
     }
     for block in [1, 2, 50, 403, 1000] {
         let mut s = csv(&text, None).unwrap();
@@ -355,5 +355,58 @@ fn csv_block_sizes_agree() {
         let (got, err) = drain(&mut s, block);
         assert!(err.is_none(), "{err:?}");
         assert_eq!(got, sig, "block {block}");
+    }
+}
+
+/// A reader that hands out at most `chunk` bytes per call, like a pipe fed slowly.
+struct Trickle {
+    data: Vec<u8>,
+    pos: usize,
+    chunk: usize,
+}
+
+impl std::io::Read for Trickle {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = buf.len().min(self.chunk).min(self.data.len() - self.pos);
+        buf[..n].copy_from_slice(&self.data[self.pos..self.pos + n]);
+        self.pos += n;
+        Ok(n)
+    }
+}
+
+#[test]
+fn slow_pipes_give_the_same_samples_and_errors() {
+    let sig = test_signal(2, 150);
+    let mut wav = Vec::new();
+    write_wav_f32(&mut wav, 4000, &sig).unwrap();
+    let raw = raw_bytes(&sig, RawFormat::F64);
+    for chunk in [1, 3, 7, 64, 4096] {
+        let t = |data: &[u8]| Trickle {
+            data: data.to_vec(),
+            pos: 0,
+            chunk,
+        };
+        let mut src = WavSource::new(t(&wav), "pipe").unwrap();
+        let (got, err) = drain(&mut src, 16);
+        assert!(err.is_none());
+        assert_eq!(got, as_f32(&sig), "wav, chunk {chunk}");
+        let mut src = WavSource::new(t(&wav[..wav.len() - 3]), "pipe").unwrap();
+        let (got, err) = drain(&mut src, 16);
+        assert_eq!(got[0].len(), 149, "wav cut, chunk {chunk}");
+        assert!(matches!(err, Some(SourceError::Truncated { .. })));
+        let mut src = RawSource::new(t(&raw), "pipe", RawFormat::F64, 10.0, 2).unwrap();
+        let (got, err) = drain(&mut src, 16);
+        assert!(err.is_none());
+        assert_eq!(got, sig, "raw, chunk {chunk}");
+        let mut src =
+            RawSource::new(t(&raw[..raw.len() - 9]), "pipe", RawFormat::F64, 10.0, 2).unwrap();
+        let (got, err) = drain(&mut src, 16);
+        assert_eq!(got[1][..], sig[1][..149], "raw cut, chunk {chunk}");
+        match err {
+            Some(SourceError::Truncated { got, .. }) => {
+                assert!(got.contains("149 whole frames and 7 stray bytes"), "{got}")
+            }
+            other => panic!("expected Truncated, got {other:?}"),
+        }
     }
 }

@@ -239,3 +239,119 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
+    let dir = tmpdir("scale");
+    std::fs::write(dir.join("sensors.csv"), "id,x,y\nA,0,0\nB,1,1\n").unwrap();
+    let spec = hound::WavSpec {
+        channels: 2,
+        sample_rate: 1000,
+        bits_per_sample: 16,
+        sample_format: hound::SampleFormat::Int,
+    };
+    let mut w = hound::WavWriter::create(dir.join("responses.wav"), spec).unwrap();
+    for c in [100i16, -200, 16384, -32768] {
+        w.write_sample(c).unwrap();
+    }
+    w.finalize().unwrap();
+    // Without meta.json: scaled to [-1, 1).
+    let mut set = open_recording_set(&dir).unwrap();
+    assert_eq!(set.meta, RecordingMeta::default());
+    let (got, _) = drain(set.source.as_mut(), 10);
+    assert_eq!(
+        got,
+        [vec![100.0 / 32768.0, 0.5], vec![-200.0 / 32768.0, -1.0]]
+    );
+    // With "scale": physical units per count; unknown keys ignored.
+    std::fs::write(
+        dir.join("meta.json"),
+        r#"{"scale": 0.001, "kind": "free_decay", "x": [1]}"#,
+    )
+    .unwrap();
+    let mut set = open_recording_set(&dir).unwrap();
+    assert_eq!(set.meta.kind, DecayKind::FreeDecay);
+    let (got, _) = drain(set.source.as_mut(), 10);
+    assert_eq!(got, [vec![0.1, 16.384], vec![-0.2, -32.768]]);
+    // CSV columns holding the sensor ids in another order would mislabel data: refused.
+    std::fs::remove_file(dir.join("responses.wav")).unwrap();
+    std::fs::write(dir.join("responses.csv"), "time,B,A\n0,1,2\n0.001,3,4\n").unwrap();
+    assert!(matches!(
+        open_recording_set(&dir),
+        Err(SourceError::Malformed { .. })
+    ));
+    std::fs::write(dir.join("responses.csv"), "time,A,B\n0,1,2\n0.001,3,4\n").unwrap();
+    let mut set = open_recording_set(&dir).unwrap();
+    assert!((set.source.info().sample_rate_hz - 1000.0).abs() < 1e-9);
+    assert_eq!(
+        drain(set.source.as_mut(), 10).0,
+        [vec![1.0, 3.0], vec![2.0, 4.0]]
+    );
+    // Neither response file.
+    std::fs::remove_file(dir.join("responses.csv")).unwrap();
+    assert!(matches!(
+        open_recording_set(&dir),
+        Err(SourceError::Setting { .. })
+    ));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The measured reference RIRs (PCM16, 44.1 and 96 kHz) stream to exactly hound's samples / 2^15.
+#[test]
+fn reference_pcm16_wavs_match_hound() {
+    for name in ["living_room_1.wav", "ir_sportscentre_omni.wav"] {
+        let path = format!("/work/shared/reference/rir/{name}");
+        let mut h = hound::WavReader::open(&path).unwrap();
+        let spec = h.spec();
+        let want: Vec<f64> = h
+            .samples::<i16>()
+            .map(|s| f64::from(s.unwrap()) / 32768.0)
+            .collect();
+        let mut o = open_input(&path, &InputOptions::default()).unwrap();
+        assert_eq!(o.source.info().sample_rate_hz, f64::from(spec.sample_rate));
+        assert_eq!(o.source.info().channels(), usize::from(spec.channels));
+        let (got, err) = drain(o.source.as_mut(), 4096);
+        assert!(err.is_none(), "{name}: {err:?}");
+        assert_eq!(got[0], want, "{name}");
+    }
+}
+
+fn small_wav() -> Vec<u8> {
+    let mut wav = Vec::new();
+    write_wav_f32(
+        &mut wav,
+        4000,
+        &[vec![0.5, -1.0, 2.0], vec![1.0, 0.0, -3.0]],
+    )
+    .unwrap();
+    wav
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+    /// A valid WAV or CSV with random bytes overwritten and a random cut: samples or a typed
+    /// error, never a panic, whatever the block size.
+    #[test]
+    fn mutated_inputs_never_panic(
+        csv in any::<bool>(),
+        edits in prop::collection::vec((0usize..200, any::<u8>()), 0..6),
+        cut in 0usize..200,
+        block in 1usize..8,
+    ) {
+        let mut bytes = if csv {
+            b"# fs=100\ntime,a,b\n0,1,2\n0.01,3,4\n0.02,5,6\n".to_vec()
+        } else {
+            small_wav()
+        };
+        for (pos, val) in edits {
+            if let Some(b) = bytes.get_mut(pos) {
+                *b = val;
+            }
+        }
+        bytes.truncate(cut.min(bytes.len()));
+        if let Ok(mut s) = open_stream(Cursor::new(bytes), "stdin", &InputOptions::default()) {
+            let (got, _) = drain(s.as_mut(), block);
+            prop_assert!(got.iter().all(|c| c.len() == got[0].len()));
+        }
+    }
+}

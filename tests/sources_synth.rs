@@ -64,7 +64,15 @@ fn mode_parsing() {
     );
     let m: Mode = "55:0.01".parse().unwrap();
     assert_eq!((m.amplitude, m.phase_deg), (1.0, 0.0));
-    for bad in ["55", "55:x", "-1:0.1", "55:-0.1", "55:0.1:1:2:3", "nan:0.1", ""] {
+    for bad in [
+        "55",
+        "55:x",
+        "-1:0.1",
+        "55:-0.1",
+        "55:0.1:1:2:3",
+        "nan:0.1",
+        "",
+    ] {
         assert!(bad.parse::<Mode>().is_err(), "{bad}");
     }
     assert!(SynthSource::new(spec(&[], 1000.0, 1.0, None)).is_err());
@@ -76,8 +84,18 @@ fn mode_parsing() {
 fn peak_is_the_exact_maximum() {
     let cases = [
         spec(&[(55.0, 0.025, 1.0, 0.0)], 4000.0, 4.0, None),
-        spec(&[(56.84, 0.005, 1.0, 0.0), (57.51, 0.005, 1.0, 120.0)], 4000.0, 4.0, None),
-        spec(&[(3.0, 0.0, 1.0, 0.0), (300.0, 0.05, -2.0, 10.0)], 1000.0, 2.0, None),
+        spec(
+            &[(56.84, 0.005, 1.0, 0.0), (57.51, 0.005, 1.0, 120.0)],
+            4000.0,
+            4.0,
+            None,
+        ),
+        spec(
+            &[(3.0, 0.0, 1.0, 0.0), (300.0, 0.05, -2.0, 10.0)],
+            1000.0,
+            2.0,
+            None,
+        ),
     ];
     for s in cases {
         let brute = synthesize(&s).iter().fold(0f64, |m, v| m.max(v.abs()));
@@ -88,7 +106,12 @@ fn peak_is_the_exact_maximum() {
 #[test]
 fn noise_matches_requested_psnr() {
     for (snr, seed) in [(20.0, 1), (50.0, 2), (80.0, 3)] {
-        let clean_spec = spec(&[(200.0, 0.025, 1.0, 0.0), (230.0, 0.025, 0.7, 0.0)], 4000.0, 4.0, None);
+        let clean_spec = spec(
+            &[(200.0, 0.025, 1.0, 0.0), (230.0, 0.025, 0.7, 0.0)],
+            4000.0,
+            4.0,
+            None,
+        );
         let noisy_spec = SynthSpec {
             snr_db: Some(snr),
             seed,
@@ -105,16 +128,30 @@ fn noise_matches_requested_psnr() {
             / clean.len() as f64)
             .sqrt();
         let measured = 20.0 * (peak / rms).log10();
-        assert!((measured - snr).abs() < 0.5, "requested {snr} dB, measured {measured} dB");
+        assert!(
+            (measured - snr).abs() < 0.5,
+            "requested {snr} dB, measured {measured} dB"
+        );
         // Same seed → same noise; another seed → other noise.
         assert_eq!(noisy, synthesize(&noisy_spec));
-        assert_ne!(noisy, synthesize(&SynthSpec { seed: seed + 10, ..noisy_spec }));
+        assert_ne!(
+            noisy,
+            synthesize(&SynthSpec {
+                seed: seed + 10,
+                ..noisy_spec
+            })
+        );
     }
 }
 
 #[test]
 fn block_sizes_give_identical_samples() {
-    let s = spec(&[(55.0, 0.025, 1.0, 0.0), (120.0, 0.01, 0.3, 45.0)], 4000.0, 1.0, Some(40.0));
+    let s = spec(
+        &[(55.0, 0.025, 1.0, 0.0), (120.0, 0.01, 0.3, 45.0)],
+        4000.0,
+        1.0,
+        Some(40.0),
+    );
     let whole = synthesize(&s);
     for block in [1, 3, 1000, 4000, 100_000] {
         let mut src = SynthSource::new(s.clone()).unwrap();

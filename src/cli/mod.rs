@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod bands_arg;
 pub mod compare;
 pub mod demo;
+pub mod synth;
 
 use clap::{Parser, Subcommand};
 
@@ -35,6 +36,8 @@ pub enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Run the built-in demonstration: the report's reference cases, no input files needed.
     Demo(demo::DemoArgs),
+    /// Write decaying sines (report eq. 4.5) as WAV, raw f32 or CSV (stdout or --out).
+    Synth(synth::SynthArgs),
 }
 
 /// Parses the command line, runs the command and returns the process exit code.
@@ -50,6 +53,7 @@ pub fn main_exit_code() -> i32 {
     let result = match &cli.command {
         Command::Analyze(args) => analyze::run(args),
         Command::Demo(args) => demo::run(args).map(|_| EXIT_OK),
+        Command::Synth(args) => synth::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

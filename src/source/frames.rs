@@ -86,7 +86,10 @@ pub(crate) struct FrameReader<R> {
     scale: f64,
     /// Data bytes announced by a header, if any (None: read to the end of the stream).
     announced_bytes: Option<u64>,
+    /// Bytes consumed from the reader.
     bytes_read: u64,
+    /// Bytes buffered in `buf` that do not yet make a whole frame (carried to the next call).
+    have: usize,
     frames_read: u64,
     pending: Option<SourceError>,
     done: bool,
@@ -111,6 +114,7 @@ impl<R: Read> FrameReader<R> {
             scale,
             announced_bytes,
             bytes_read: 0,
+            have: 0,
             frames_read: 0,
             pending: None,
             done: false,
@@ -133,16 +137,15 @@ impl<R: Read> FrameReader<R> {
         self.channels * self.codec.bytes()
     }
 
-    fn truncation(&self, partial: usize) -> SourceError {
+    /// The truncation error once the stream ended; `whole` frames of this call not yet counted.
+    fn truncation(&self, partial: usize, whole: usize) -> SourceError {
+        let frames = self.frames_read + whole as u64;
         let fb = self.frame_bytes() as u64;
         match self.announced_bytes {
             Some(n) => SourceError::Truncated {
                 what: self.what.clone(),
                 expected: format!("{n} data bytes ({} frames) announced by the header", n / fb),
-                got: format!(
-                    "{} bytes ({} whole frames)",
-                    self.bytes_read, self.frames_read
-                ),
+                got: format!("{} bytes ({} whole frames)", self.bytes_read, frames),
             },
             None => SourceError::Truncated {
                 what: self.what.clone(),
@@ -153,7 +156,7 @@ impl<R: Read> FrameReader<R> {
                 ),
                 got: format!(
                     "{} bytes: {} whole frames and {partial} stray bytes",
-                    self.bytes_read, self.frames_read
+                    self.bytes_read, frames
                 ),
             },
         }
@@ -181,24 +184,43 @@ impl<R: Read> FrameReader<R> {
         // At most ~1 MiB per call (but at least one frame): memory stays bounded whatever the
         // caller asks; fewer frames than asked is within the contract.
         let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
-        let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb) as u64;
+        let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb);
         if let Some(n) = self.announced_bytes {
-            want = want.min(n - self.bytes_read);
+            want = want.min(self.have + (n - self.bytes_read) as usize);
         }
-        let got = read_up_to(&mut self.reader, &mut self.buf, want as usize).map_err(|e| {
-            SourceError::Io {
-                what: self.what.clone(),
-                source: e,
+        if self.buf.len() < want {
+            self.buf.resize(want, 0);
+        }
+        // Read until at least one whole frame is buffered (or `want` bytes, or the end): a live
+        // stream yields what has arrived instead of waiting for a full block.
+        let mut eof = false;
+        while self.have < want && self.have < fb {
+            match self.reader.read(&mut self.buf[self.have..want]) {
+                Ok(0) => {
+                    eof = true;
+                    break;
+                }
+                Ok(k) => {
+                    self.have += k;
+                    self.bytes_read += k as u64;
+                }
+                Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
+                Err(e) => {
+                    return Err(SourceError::Io {
+                        what: self.what.clone(),
+                        source: e,
+                    })
+                }
             }
-        })?;
-        self.bytes_read += got as u64;
-        let whole = got / fb;
-        let partial = got % fb;
-        let at_end =
-            got < want as usize || self.announced_bytes.is_some_and(|n| self.bytes_read == n);
-        let short = got < want as usize && (self.announced_bytes.is_some() || partial > 0);
-        if at_end {
+        }
+        let whole = self.have / fb;
+        let partial = self.have % fb;
+        let announced_done = self.announced_bytes.is_some_and(|n| self.bytes_read == n);
+        if eof || announced_done {
             self.done = true;
+            if partial > 0 || (eof && self.announced_bytes.is_some()) {
+                self.pending = Some(self.truncation(partial, whole));
+            }
         }
         for ch in &mut block.channels {
             ch.reserve(whole);
@@ -209,10 +231,9 @@ impl<R: Read> FrameReader<R> {
                 ch.push(self.codec.decode(s) * self.scale);
             }
         }
+        self.buf.copy_within(whole * fb..self.have, 0);
+        self.have = partial;
         self.frames_read += whole as u64;
-        if short {
-            self.pending = Some(self.truncation(partial));
-        }
         if whole == 0 {
             if let Some(e) = self.pending.take() {
                 return Err(e);

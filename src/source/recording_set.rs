@@ -105,8 +105,11 @@ fn malformed(path: &Path, format: &'static str, detail: String) -> SourceError {
     }
 }
 
+/// A small CSV table: lower-cased header, rows with their line numbers.
+type Table = (Vec<String>, Vec<(u64, Vec<String>)>);
+
 /// Reads a small CSV table: returns the lower-cased header and the rows with their line numbers.
-fn read_table(path: &Path) -> Result<(Vec<String>, Vec<(u64, Vec<String>)>), SourceError> {
+fn read_table(path: &Path) -> Result<Table, SourceError> {
     let file = File::open(path).map_err(|e| io_err(path, e))?;
     let mut r = ::csv::ReaderBuilder::new()
         .trim(::csv::Trim::All)
@@ -251,6 +254,7 @@ pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
         let what = csv.display().to_string();
         let f = File::open(&csv).map_err(|e| io_err(&csv, e))?;
         let s = CsvSource::new(BufReader::new(f), what.clone(), meta.fs)?;
+        check_column_order(&what, &s.info().channel_names, &ids)?;
         (what, s.info().channels(), Box::new(s))
     } else {
         return Err(SourceError::Setting {
@@ -272,6 +276,28 @@ pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
         excitation,
         source,
     })
+}
+
+/// Columns of `responses.csv` are named by sensor id and taken in `sensors.csv` row order. When
+/// the header holds exactly the sensor ids but in another order, the data would be silently
+/// mislabelled: that is an error. Other names (`ch0`, …) are renamed by position.
+fn check_column_order(what: &str, columns: &[String], ids: &[String]) -> Result<(), SourceError> {
+    if columns.len() == ids.len() && columns != ids {
+        let mut a: Vec<&String> = columns.iter().collect();
+        let mut b: Vec<&String> = ids.iter().collect();
+        a.sort();
+        b.sort();
+        if a == b {
+            return Err(SourceError::Malformed {
+                what: what.to_string(),
+                format: "csv",
+                detail: format!(
+                    "expected the channel columns in sensors.csv order {ids:?}, got {columns:?}"
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// Wraps a source so that its channels carry the given names (same count, checked by caller).
