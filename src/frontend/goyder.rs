@@ -443,7 +443,7 @@ impl FrontEnd for GoyderFrontEnd {
                     };
                     kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
                     m += n_end - lo;
-                    if n_end <= used && lo % hop == 0 {
+                    if n_end <= used && lo.is_multiple_of(hop) {
                         flush(kernel, lo / hop);
                     }
                     n_end = lo;
@@ -459,7 +459,7 @@ impl FrontEnd for GoyderFrontEnd {
                         .min((n0 / hop + 1) * hop)
                         .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
                     kernel.filter_span(&buffer[n0..n1], false, true);
-                    if n1 % hop == 0 {
+                    if n1.is_multiple_of(hop) {
                         flush(kernel, n1 / hop - 1);
                     }
                     n0 = n1;
