@@ -297,3 +297,33 @@ fn reversed_frames_match_a_naive_oracle_at_44_1_khz() {
         }
     }
 }
+
+#[test]
+fn edge_cases_do_not_panic() {
+    let fs = 1000.0;
+    // A band above Nyquist (the pipeline flags it), an empty band list, no samples at all.
+    let above = Band::new(480.0, 700.0).unwrap();
+    let mut fe = GoyderFrontEnd::new(GoyderSettings::default(), fs, &[above]).unwrap();
+    let x = decaying_sines(&[(100.0, 0.01, 1.0, 0.0)], fs, 1.0);
+    let mut frames = 0;
+    fe.process(&x, &mut |f: Frame<'_>| assert!(f.energy[0].is_finite()));
+    fe.finish(&mut |f: Frame<'_>| {
+        assert!(f.energy[0].is_finite());
+        frames += 1;
+    });
+    assert!(frames > 0);
+    let mut empty = GoyderFrontEnd::new(GoyderSettings::default(), fs, &[]).unwrap();
+    empty.process(&x, &mut |_: Frame<'_>| {});
+    empty.finish(&mut |_: Frame<'_>| panic!("no bands, no frames"));
+    let band = Band::new(90.0, 110.0).unwrap();
+    let mut fe = GoyderFrontEnd::new(GoyderSettings::default(), fs, &[band]).unwrap();
+    fe.finish(&mut |_: Frame<'_>| panic!("no samples, no frames"));
+    let e = analyze_decay(&[], &mut fe, &EstimateSettings::default()).remove(0);
+    assert!(e.t60_s.is_none() && !e.flags.is_empty(), "{e:?}");
+    assert!(GoyderFrontEnd::new(GoyderSettings::default(), f64::NAN, &[band]).is_err());
+    let s = GoyderSettings {
+        max_decay_s: f64::INFINITY,
+        ..Default::default()
+    };
+    assert!(GoyderFrontEnd::new(s, fs, &[band]).is_err());
+}
