@@ -93,17 +93,20 @@ fn rigid_walls_rir_t20_t30_within_3_percent_in_every_octave() {
 
 /// `analytic_rir_psnr50_2D.csv`: fs 3000 Hz, T60 = 1 s and 2 s plus white noise at a broadband
 /// peak-SNR of 50 dB. Per octave band the peak-to-noise ratio is only 31–37 dB (measured with
-/// scipy on the same filters), below the 45 dB that ISO 3382 asks for T30: without noise
-/// compensation no honest T30 exists, and the chain must say so rather than report the
-/// noise-lengthened value (≈ 20–24 s).
+/// scipy on the same filters), below the 45 dB that ISO 3382 asks for T30: no honest T30 exists
+/// and the chain must say so rather than report a noise-lengthened value (≈ 20–24 s without
+/// compensation). T20 (35 dB needed) is reachable with the estimator's noise compensation in the
+/// 1 kHz octave, which holds most of the room's modes (the analytic RIR stops at 1 kHz and the
+/// 1 m³ room's modal density grows with f²); the 63–250 Hz octaves hold only a few modes and are
+/// noise-limited. (500 Hz: 1.038 s and 1.975 s at the time of writing, i.e. 3.8 % off on ch0.)
 #[test]
-fn noisy_rir_t30_is_flagged_noise_limited_in_every_octave() {
+fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
     let Some(text) = reference("analytic_rir_psnr50_2D.csv") else {
         return;
     };
     let rows: Vec<Vec<f64>> = text.lines().map(numbers).collect();
     assert_eq!(rows.len(), 2);
-    for x in &rows {
+    for (x, t60) in rows.iter().zip([1.0, 2.0]) {
         assert_eq!(x.len(), 16384);
         for (band, e) in octave(x, 3000.0, FilterDirection::Reversed, EvaluationRange::T30) {
             assert!(
@@ -111,6 +114,23 @@ fn noisy_rir_t30_is_flagged_noise_limited_in_every_octave() {
                 "{} Hz: {:?} {:?}",
                 band.nominal_hz,
                 e.t60_s,
+                e.flags
+            );
+        }
+        let t20 = octave(x, 3000.0, FilterDirection::Reversed, EvaluationRange::T20);
+        let (band, e) = t20.iter().find(|(b, _)| b.nominal_hz == 1000.0).unwrap();
+        let t = e.t60_s.unwrap_or(f64::NAN);
+        assert!(
+            rel_err(t, t60) < 0.03,
+            "{} Hz T20 = {t} vs {t60}, {:?}",
+            band.nominal_hz,
+            e.flags
+        );
+        for (band, e) in t20.iter().filter(|(b, _)| b.nominal_hz <= 250.0) {
+            assert!(
+                e.has(Flag::NoiseLimited),
+                "{} Hz: {:?}",
+                band.nominal_hz,
                 e.flags
             );
         }
