@@ -3,6 +3,7 @@
 
 pub mod analyze;
 pub mod bands_arg;
+pub mod compare;
 pub mod demo;
 pub mod modes;
 pub mod simulate;
