@@ -7,19 +7,61 @@ use std::sync::Arc;
 use anyhow::Context;
 
 use super::bands_arg::BandArgs;
+use super::compare::DirectionArg;
 use super::{EXIT_OK, EXIT_PARTIAL};
+use crate::frontend::bands::Band;
+use crate::frontend::goyder::{GoyderFrontEnd, GoyderSettings};
+use crate::frontend::octave_bank::{OctaveBankFrontEnd, OctaveBankSettings};
+use crate::frontend::onset::find_onset;
 use crate::frontend::stft::StftFrontEnd;
 use crate::frontend::FrontEnd;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, AnalysisConfig, FrontEndFactory};
+use crate::source::memory::{read_all, MemorySource};
 use crate::source::raw::RawFormat;
 use crate::source::stdin::{open_input, InputOptions};
+use crate::source::Source;
 
 /// Which time-frequency front end turns samples into band energies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum FrontEndChoice {
     /// Short-time Fourier transform (Hann window).
     Stft,
+    /// Goyder-style bank: narrow complex band-pass filters run on the time-reversed decay.
+    Goyder,
+    /// IEC 61260 Butterworth band-pass bank (biquads), forward or time-reversed.
+    Octave,
+}
+
+/// Builds one front end of `choice` for `bands`.
+pub fn make_front_end(
+    choice: FrontEndChoice,
+    band_args: &BandArgs,
+    direction: DirectionArg,
+    sample_rate_hz: f64,
+    bands: &[Band],
+) -> crate::error::Result<Box<dyn FrontEnd>> {
+    Ok(match choice {
+        FrontEndChoice::Stft => {
+            Box::new(StftFrontEnd::new(band_args.stft(), sample_rate_hz, bands)?)
+        }
+        FrontEndChoice::Goyder => Box::new(GoyderFrontEnd::new(
+            GoyderSettings {
+                direction: direction.into(),
+                ..Default::default()
+            },
+            sample_rate_hz,
+            bands,
+        )?),
+        FrontEndChoice::Octave => Box::new(OctaveBankFrontEnd::new(
+            OctaveBankSettings {
+                direction: direction.into(),
+                ..Default::default()
+            },
+            sample_rate_hz,
+            bands,
+        )?),
+    })
 }
 
 /// Options of `dampscope analyze`.
@@ -40,6 +82,9 @@ pub struct AnalyzeArgs {
     /// Front end.
     #[arg(long, value_enum, default_value_t = FrontEndChoice::Stft)]
     pub front_end: FrontEndChoice,
+    /// Filter direction of the filter banks (reversed preserves the decay rate).
+    #[arg(long, value_enum, default_value_t = DirectionArg::Reversed)]
+    pub filter_direction: DirectionArg,
     /// Bands, windows and evaluation range.
     #[command(flatten)]
     pub bands: BandArgs,
@@ -63,24 +108,24 @@ pub struct AnalyzeArgs {
     pub retrigger_db: f64,
 }
 
-/// Builds the front-end factory for the chosen front end.
+/// Builds the front-end factory for the chosen front end and bands.
 pub fn front_end_factory(
     choice: FrontEndChoice,
-    bands_args: &BandArgs,
+    band_args: &BandArgs,
+    direction: DirectionArg,
     sample_rate_hz: f64,
+    bands: Vec<Band>,
 ) -> anyhow::Result<FrontEndFactory> {
-    let bands = bands_args.resolve(sample_rate_hz)?;
-    let stft = bands_args.stft();
     // Build one now so that bad settings fail before any thread starts.
-    match choice {
-        FrontEndChoice::Stft => {
-            StftFrontEnd::new(stft, sample_rate_hz, &bands)?;
-            Ok(Arc::new(move || {
-                Ok(Box::new(StftFrontEnd::new(stft, sample_rate_hz, &bands)?) as Box<dyn FrontEnd>)
-            }))
-        }
-    }
+    make_front_end(choice, band_args, direction, sample_rate_hz, &bands)?;
+    let band_args = band_args.clone();
+    Ok(Arc::new(move || {
+        make_front_end(choice, &band_args, direction, sample_rate_hz, &bands)
+    }))
 }
+
+/// The most samples per channel read whole for `--bands auto` (2^27: 45 min at 48 kHz).
+pub const MAX_WHOLE_SAMPLES: usize = 1 << 27;
 
 /// Runs `analyze`; returns the exit code (0, or 3 when part of the input was damaged).
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
@@ -89,9 +134,34 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
         fs_hz: args.fs_hz,
         channels: args.channels,
     };
-    let opened = open_input(&args.input, &opts)?;
+    let mut opened = open_input(&args.input, &opts)?;
     let info = opened.source.info().clone();
-    let factory = front_end_factory(args.front_end, &args.bands, info.sample_rate_hz)?;
+    let fs = info.sample_rate_hz;
+    let (source, bands, warnings): (Box<dyn Source>, _, _) = if args.bands.needs_samples() {
+        // Mode-centred bands need the spectrum first: read the input whole (bounded).
+        let data = read_all(opened.source.as_mut(), MAX_WHOLE_SAMPLES)?;
+        let first = data.first().map(Vec::as_slice).unwrap_or(&[]);
+        let from = find_onset(first, args.onset_level_db).unwrap_or(0);
+        let (bands, warnings) = args.bands.resolve_with(fs, Some(&first[from..]))?;
+        (
+            Box::new(MemorySource::new(info.clone(), data)?),
+            bands,
+            warnings,
+        )
+    } else {
+        let (bands, warnings) = args.bands.resolve_with(fs, None)?;
+        (opened.source, bands, warnings)
+    };
+    for w in warnings {
+        eprintln!("dampscope: warning: {w}");
+    }
+    let factory = front_end_factory(
+        args.front_end,
+        &args.bands,
+        args.filter_direction,
+        fs,
+        bands,
+    )?;
     if let Some(s) = args.max_decay_s {
         anyhow::ensure!(
             s > 0.0,
@@ -114,9 +184,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
     };
     let mut writer = TableWriter::new(out, args.format);
     writer.write_header()?;
-    let summary = pipeline::run(opened.source, &factory, &config, |rows| {
-        writer.write_rows(rows)
-    })?;
+    let summary = pipeline::run(source, &factory, &config, |rows| writer.write_rows(rows))?;
     let mut code = EXIT_OK;
     if let Some(e) = &summary.input_error {
         eprintln!(

@@ -3,7 +3,9 @@
 use crate::decay::estimate::EstimateSettings;
 use crate::decay::EvaluationRange;
 use crate::error::{Error, Result};
+use crate::frontend::auto_bands::{auto_bands, bands_around_modes, AutoBandSettings};
 use crate::frontend::bands::{parse_band, parse_band_range, Band};
+use crate::frontend::iec_bands::{iec_bands, OctaveFraction};
 use crate::frontend::stft::StftSettings;
 
 /// Options that choose the bands and the STFT settings.
@@ -12,9 +14,20 @@ pub struct BandArgs {
     /// One band LO:HI in Hz (repeatable).
     #[arg(long = "band", value_name = "LO:HI")]
     pub band: Vec<String>,
-    /// Consecutive bands LO:HI:WIDTH in Hz (repeatable).
-    #[arg(long = "bands", value_name = "LO:HI:WIDTH")]
+    /// Consecutive bands LO:HI:WIDTH in Hz, or a layout: `octave`, `third-octave` (IEC 61260-1
+    /// base-10, nominal labels), `auto` (mode-centred: one band per spectral peak of the decay,
+    /// edges halfway to the neighbours) or `model` (one band per mode of --model). Repeatable.
+    #[arg(
+        long = "bands",
+        value_name = "LO:HI:WIDTH|octave|third-octave|auto|model"
+    )]
     pub bands: Vec<String>,
+    /// Plate model (TOML) whose modes centre the bands of `--bands model`.
+    #[arg(long, value_name = "M.toml")]
+    pub model: Option<std::path::PathBuf>,
+    /// Widest mode-centred band (`auto`, `model`), Hz.
+    #[arg(long, default_value_t = 50.0)]
+    pub max_band_hz: f64,
     /// STFT window length in ms.
     #[arg(long, default_value_t = 200.0)]
     pub window_ms: f64,
@@ -63,24 +76,79 @@ impl BandArgs {
         })
     }
 
-    /// The bands given, in order, or the default layout when none are given.
-    pub fn resolve(&self, sample_rate_hz: f64) -> Result<Vec<Band>> {
+    /// True when the bands can only be chosen after seeing the decay (`--bands auto`).
+    pub fn needs_samples(&self) -> bool {
+        self.bands.iter().any(|b| b.trim() == "auto")
+    }
+
+    /// The bands given, in order, or the default layout when none are given. `decay` (from its
+    /// onset) is needed for `--bands auto`. Returns the bands and warnings to show the user.
+    pub fn resolve_with(
+        &self,
+        sample_rate_hz: f64,
+        decay: Option<&[f64]>,
+    ) -> Result<(Vec<Band>, Vec<String>)> {
         let mut out = Vec::new();
+        let mut warnings = Vec::new();
         for b in &self.band {
             out.push(parse_band(b)?);
         }
         for spec in &self.bands {
-            out.extend(parse_band_range(spec)?);
+            let key = spec.trim();
+            if key == "auto" {
+                let decay = decay.ok_or_else(|| {
+                    Error::setting(
+                        "--bands",
+                        "auto needs the decay's samples (read whole first)",
+                    )
+                })?;
+                let s = AutoBandSettings {
+                    f_max_hz: 0.5 * sample_rate_hz,
+                    max_width_hz: self.max_band_hz,
+                    ..Default::default()
+                };
+                out.extend(auto_bands(decay, sample_rate_hz, &s)?);
+            } else if key == "model" {
+                out.extend(self.model_bands(sample_rate_hz)?);
+            } else if let Some(fraction) = OctaveFraction::from_keyword(key) {
+                let (b, w) = iec_bands(fraction, 20.0, sample_rate_hz)?;
+                out.extend(b);
+                warnings.extend(w);
+            } else {
+                out.extend(parse_band_range(spec)?);
+            }
         }
         if out.is_empty() {
             out = default_bands(sample_rate_hz)?;
         }
-        Ok(out)
+        Ok((out, warnings))
+    }
+
+    /// Bands around the modes of `--model` below 0.45 fs.
+    fn model_bands(&self, sample_rate_hz: f64) -> Result<Vec<Band>> {
+        let path = self
+            .model
+            .as_ref()
+            .ok_or_else(|| Error::setting("--bands model", "needs --model M.toml"))?;
+        let sim_err = |e: crate::sim::SimError| Error::setting("--model", e.to_string());
+        let model = crate::sim::model::Model::load(path).map_err(sim_err)?;
+        let system = crate::sim::assembly::assemble(&model).map_err(sim_err)?;
+        let modes = crate::sim::eigen::lowest_modes(
+            &system,
+            crate::sim::eigen::ModeRequest::BelowHz(0.45 * sample_rate_hz),
+        )
+        .map_err(sim_err)?;
+        bands_around_modes(&modes.frequencies_hz, self.max_band_hz)
+    }
+
+    /// The bands given (without `auto`), or the default layout when none are given.
+    pub fn resolve(&self, sample_rate_hz: f64) -> Result<Vec<Band>> {
+        self.resolve_with(sample_rate_hz, None).map(|(b, _)| b)
     }
 }
 
-/// The default layout: consecutive 50 Hz bands from 25 Hz up to 0.4 fs (at most 2 kHz)... kept
-/// simple until standard octave layouts land.
+/// The default layout: the report's chapter 4 bands, 50 Hz wide, centred on 50, 100, 150, … Hz,
+/// up to 0.4 fs (at most 2 kHz).
 pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
     let top = (0.4 * sample_rate_hz).min(2025.0);
     parse_band_range(&format!("25:{top}:50"))

@@ -10,16 +10,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 
+use super::analyze::{make_front_end, FrontEndChoice};
 use super::bands_arg::BandArgs;
 use crate::analysis::sweep::{run_sweep, write_csv, SweepConfig, SweepRow, SWEEP_FRONT_ENDS};
 use crate::decay::DecayEstimate;
 use crate::error::{Error, Result};
-use crate::frontend::auto_bands::{auto_bands, AutoBandSettings};
-use crate::frontend::goyder::{FilterDirection, GoyderFrontEnd, GoyderSettings};
-use crate::frontend::iec_bands::{iec_bands, OctaveFraction};
-use crate::frontend::octave_bank::{OctaveBankFrontEnd, OctaveBankSettings};
+use crate::frontend::goyder::FilterDirection;
 use crate::frontend::onset::find_onset;
-use crate::frontend::stft::StftFrontEnd;
 use crate::frontend::{Band, FrontEnd};
 use crate::pipeline::analyze_decay;
 use crate::source::raw::RawFormat;
@@ -85,38 +82,13 @@ impl From<DirectionArg> for FilterDirection {
     }
 }
 
-/// Resolves the band options for one decay: the keywords `auto`, `octave` and `third-octave`
-/// in `--bands` (others as for analyze). Returns the bands and warnings to show.
+/// Resolves the band options for one decay (see [`BandArgs::resolve_with`]).
 pub fn resolve_bands(
     args: &BandArgs,
     decay: &[f64],
     fs_hz: f64,
 ) -> Result<(Vec<Band>, Vec<String>)> {
-    let mut bands = Vec::new();
-    let mut warnings = Vec::new();
-    let mut plain = args.clone();
-    plain.bands.clear();
-    for spec in &args.bands {
-        if spec.trim() == "auto" {
-            let s = AutoBandSettings {
-                f_max_hz: 0.5 * fs_hz,
-                ..Default::default()
-            };
-            bands.extend(auto_bands(decay, fs_hz, &s)?);
-        } else if let Some(fraction) = OctaveFraction::from_keyword(spec) {
-            let (b, w) = iec_bands(fraction, 20.0, fs_hz)?;
-            bands.extend(b);
-            warnings.extend(w);
-        } else {
-            plain.bands.push(spec.clone());
-        }
-    }
-    if !plain.band.is_empty() || !plain.bands.is_empty() || bands.is_empty() {
-        let mut rest = plain.resolve(fs_hz)?;
-        rest.extend(bands);
-        bands = rest;
-    }
-    Ok((bands, warnings))
+    args.resolve_with(fs_hz, Some(decay))
 }
 
 /// Builds the named front end.
@@ -126,32 +98,18 @@ pub fn build_front_end(
     fs_hz: f64,
     bands: &[Band],
 ) -> Result<Box<dyn FrontEnd>> {
-    let direction = args.filter_direction.into();
-    Ok(match name.trim() {
-        "stft" => Box::new(StftFrontEnd::new(args.bands.stft(), fs_hz, bands)?),
-        "goyder" => Box::new(GoyderFrontEnd::new(
-            GoyderSettings {
-                direction,
-                ..Default::default()
-            },
-            fs_hz,
-            bands,
-        )?),
-        "octave" => Box::new(OctaveBankFrontEnd::new(
-            OctaveBankSettings {
-                direction,
-                ..Default::default()
-            },
-            fs_hz,
-            bands,
-        )?),
+    let choice = match name.trim() {
+        "stft" => FrontEndChoice::Stft,
+        "goyder" => FrontEndChoice::Goyder,
+        "octave" => FrontEndChoice::Octave,
         other => {
             return Err(Error::setting(
                 "--front-ends",
                 format!("expected stft, goyder or octave, got '{other}'"),
             ))
         }
-    })
+    };
+    make_front_end(choice, &args.bands, args.filter_direction, fs_hz, bands)
 }
 
 fn fmt_opt(v: Option<f64>, scale: f64, digits: usize) -> String {

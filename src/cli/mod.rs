@@ -38,6 +38,8 @@ pub enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Run the built-in demonstration: the report's reference cases, no input files needed.
     Demo(demo::DemoArgs),
+    /// Run STFT, Goyder bank and octave bank side by side on one input, or the built-in sweep.
+    Compare(compare::CompareArgs),
     /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
     Modes(modes::ModesArgs),
     /// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
@@ -62,6 +64,7 @@ pub fn main_exit_code() -> i32 {
         Command::Synth(args) => synth::run(args).map(|_| EXIT_OK),
         Command::Simulate(args) => simulate::run(args).map(|_| EXIT_OK),
         Command::Modes(args) => modes::run(args).map(|_| EXIT_OK),
+        Command::Compare(args) => compare::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

@@ -117,6 +117,7 @@ pub trait Source: Send {
 // arrived on a pipe).
 pub mod csv;
 mod frames;
+pub mod memory;
 pub mod noise;
 pub mod raw;
 pub mod recording_set;
