@@ -45,6 +45,22 @@ pub struct BandArgs {
     pub min_points: usize,
 }
 
+impl Default for BandArgs {
+    fn default() -> Self {
+        BandArgs {
+            band: Vec::new(),
+            bands: Vec::new(),
+            model: None,
+            max_band_hz: 50.0,
+            window_ms: 200.0,
+            overlap: 0.5,
+            zero_pad: 1,
+            range: "t30".into(),
+            min_points: 3,
+        }
+    }
+}
+
 impl BandArgs {
     /// The STFT settings given.
     pub fn stft(&self) -> StftSettings {

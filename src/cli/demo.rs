@@ -1,11 +1,17 @@
 //! `dampscope demo`: the report's reference cases on built-in synthetic decays, analysed by the
 //! same pipeline as recordings, with the truth and the report's numbers side by side.
 
+use super::analyze::{make_front_end, FrontEndChoice};
+use super::bands_arg::BandArgs;
+use super::compare::DirectionArg;
 use crate::decay::estimate::EstimateSettings;
 use crate::decay::{DecayEstimate, EvaluationRange};
 use crate::frontend::bands::Band;
+use crate::frontend::onset::find_onset;
 use crate::frontend::stft::{StftFrontEnd, StftSettings};
 use crate::pipeline::analyze_decay;
+use crate::sim::model::{Model, SensorSpec};
+use crate::sim::simulate::{simulate, Method, SimulateOptions};
 use crate::source::synth::{synthesize, Mode, SynthSpec};
 
 /// Options of `dampscope demo`.
@@ -15,6 +21,7 @@ pub struct DemoArgs {}
 /// One demonstration case.
 struct Case {
     name: &'static str,
+    front_end: FrontEndChoice,
     modes: Vec<Mode>,
     seconds: f64,
     window_ms: f64,
@@ -42,11 +49,14 @@ fn estimate(case: &Case, fs: f64) -> anyhow::Result<DecayEstimate> {
         seed: 1,
     });
     let band = Band::new(case.band.0, case.band.1)?;
-    let mut fe = StftFrontEnd::new(
-        StftSettings {
-            window_ms: case.window_ms,
-            ..Default::default()
-        },
+    let band_args = BandArgs {
+        window_ms: case.window_ms,
+        ..BandArgs::default()
+    };
+    let mut fe = make_front_end(
+        case.front_end,
+        &band_args,
+        DirectionArg::Reversed,
         fs,
         &[band],
     )?;
@@ -54,7 +64,7 @@ fn estimate(case: &Case, fs: f64) -> anyhow::Result<DecayEstimate> {
         range: case.range,
         ..Default::default()
     };
-    Ok(analyze_decay(&x, &mut fe, &settings).remove(0))
+    Ok(analyze_decay(&x, &mut *fe, &settings).remove(0))
 }
 
 fn pct(v: Option<f64>) -> String {
@@ -67,6 +77,7 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
     let mut cases = vec![
         Case {
             name: "single mode 55 Hz",
+            front_end: FrontEndChoice::Stft,
             modes: vec![mode(55.0, 0.025, 1.0, 0.0)],
             seconds: 4.0,
             window_ms: 200.0,
@@ -77,6 +88,7 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
         },
         Case {
             name: "plate mode 7 alone (56.84 Hz) in the 55 Hz band",
+            front_end: FrontEndChoice::Stft,
             modes: vec![mode(56.84, 0.025, 1.0, 0.0)],
             seconds: 4.0,
             window_ms: 200.0,
@@ -87,6 +99,7 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
         },
         Case {
             name: "single mode 400 Hz, 200 ms window",
+            front_end: FrontEndChoice::Stft,
             modes: vec![mode(400.0, 0.01, 1.0, 0.0)],
             seconds: 2.0,
             window_ms: 200.0,
@@ -97,6 +110,7 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
         },
         Case {
             name: "single mode 400 Hz, 25 ms window",
+            front_end: FrontEndChoice::Stft,
             modes: vec![mode(400.0, 0.01, 1.0, 0.0)],
             seconds: 2.0,
             window_ms: 25.0,
@@ -107,6 +121,7 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
         },
         Case {
             name: "three sines 170/200/230 Hz (Table 4.1), 10 ms",
+            front_end: FrontEndChoice::Stft,
             modes: vec![
                 mode(170.0, 0.025, 1.0, 0.0),
                 mode(200.0, 0.025, 1.0, 0.0),
@@ -128,6 +143,7 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
                 "modes 7+8 beating, relative phase 180°",
                 "modes 7+8 beating, relative phase 270°",
             ][k],
+            front_end: FrontEndChoice::Stft,
             modes: vec![mode(56.84, 0.005, 1.0, 0.0), mode(57.51, 0.005, 1.0, *psi)],
             seconds: 16.0,
             window_ms: 200.0,
@@ -148,9 +164,13 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
         let est = estimate(case, fs)?;
         let flags: Vec<&str> = est.flags.iter().map(|f| f.as_str()).collect();
         println!(
-            "{:<48} {:>5}ms {:>5}–{:<5} {:>5} {:>7.3} {:>7} {:>9}  {:<22} {}",
+            "{:<48} {:>7} {:>5}–{:<5} {:>5} {:>7.3} {:>7} {:>9}  {:<22} {}",
             case.name,
-            case.window_ms,
+            if case.front_end == FrontEndChoice::Stft {
+                format!("{}ms", case.window_ms)
+            } else {
+                "goyder".to_string()
+            },
             case.band.0,
             case.band.1,
             case.range.to_string(),
@@ -159,6 +179,60 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
             pct(est.damping_ratio_corrected),
             flags.join(";"),
             case.report
+        );
+    }
+    plate_cases()?;
+    Ok(())
+}
+
+/// The FE plate of the report reduced to mode 7, and to modes 7 and 8 (section 3.2): mean D
+/// over the sensors of a 5 × 4 grid that move, 55 Hz band, 200 ms STFT, T30.
+fn plate_cases() -> anyhow::Result<()> {
+    let mut model = Model::reference_plate();
+    model.output.sensors = SensorSpec::Grid { nx: 5, ny: 4 };
+    println!();
+    println!("FE plate (report sec. 3.1: 2 × 3 × 0.02 m aluminium, 32 × 48 × 2 C3D8I hexahedra, g = 5 %), 55 Hz band, 200 ms STFT, T30");
+    println!(
+        "{:<34} {:>8} {:>9} {:>10}  report",
+        "model", "sensors", "mean D %", "mean D_c %"
+    );
+    for (name, keep, report) in [
+        ("mode 7 only (eq. 2.7)", vec![7], "2.6 (Fig. 3.6)"),
+        (
+            "modes 7 + 8",
+            vec![7, 8],
+            "2.7 map mean over 1089 nodes (Fig. 3.7)",
+        ),
+    ] {
+        let sim = simulate(
+            &model,
+            &SimulateOptions {
+                method: Method::Truncated(keep),
+                ..Default::default()
+            },
+        )?;
+        let band = Band::new(52.5, 57.5)?;
+        let settings = EstimateSettings::default();
+        let (mut n, mut sum, mut sum_c) = (0, 0.0, 0.0);
+        for h in &sim.impulse_responses {
+            let Some(start) = find_onset(h, 20.0) else {
+                continue;
+            };
+            let mut fe = StftFrontEnd::new(StftSettings::default(), sim.fs_hz, &[band])?;
+            let est = analyze_decay(&h[start..], &mut fe, &settings).remove(0);
+            if let (Some(d), Some(dc)) = (est.damping_ratio, est.damping_ratio_corrected) {
+                n += 1;
+                sum += d;
+                sum_c += dc;
+            }
+        }
+        println!(
+            "{:<34} {:>8} {:>9.3} {:>10.3}  {}",
+            name,
+            n,
+            100.0 * sum / n.max(1) as f64,
+            100.0 * sum_c / n.max(1) as f64,
+            report
         );
     }
     Ok(())
