@@ -166,6 +166,7 @@ pub struct ChannelAnalyzer {
     decays: usize,
     last_peak: f64,
     failed: bool,
+    fragments: usize,
 }
 
 /// Samples fed to the front end between end-of-decay checks.
@@ -202,6 +203,7 @@ impl ChannelAnalyzer {
             decays: 0,
             last_peak: 0.0,
             failed: false,
+            fragments: 0,
             config,
         }
     }
@@ -241,6 +243,13 @@ impl ChannelAnalyzer {
         };
         let trackers = &mut self.trackers;
         self.front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
+        if self.decays > 0 && self.trackers.estimators.iter().all(|e| e.frames() == 0) {
+            // A re-trigger too short for a single frame at the end of the input (e.g. the
+            // wrap-around at the end of an impulse response made by inverse FFT) is not a decay.
+            self.fragments += 1;
+            self.state = State::Searching;
+            return;
+        }
         let estimates: Vec<DecayEstimate> = self
             .trackers
             .estimators
@@ -372,6 +381,11 @@ impl ChannelAnalyzer {
             }
             out.extend(self.rows_for(None, vec![est; n]));
         }
+    }
+
+    /// Re-triggers dropped because they ended before a single frame (not decays).
+    pub fn fragments(&self) -> usize {
+        self.fragments
     }
 
     /// True once non-finite samples were seen (nothing more is reported for this channel).
