@@ -119,3 +119,15 @@ fn energy_leaking_in_from_a_neighbouring_mode_is_flagged() {
     let inside = stft_estimate(&x, fs, 50.0, 20.0, 40.0, EvaluationRange::T20);
     assert!(!inside.has(Flag::OffBandDominant), "{:?}", inside);
 }
+
+#[test]
+fn window_shorter_than_two_periods_gives_no_dominant_frequency_rather_than_a_wrong_one() {
+    // Found by the front-end sweep: 20 Hz in a 50 ms window (one period) put the mirror image's
+    // main lobe under the peak, f_dominant came out 25 Hz and D_corrected 21 % low.
+    let fs = 4000.0;
+    let x = decaying_sines(&[(20.0, 0.01, 1.0, 0.0)], fs, 16.0);
+    let est = stft_estimate(&x, fs, 50.0, 10.0, 30.0, EvaluationRange::T20);
+    assert_eq!(est.f_dominant_hz, None);
+    assert_eq!(est.damping_ratio_corrected, None);
+    assert!(rel_err(est.damping_ratio.unwrap(), 0.01) < 0.02);
+}

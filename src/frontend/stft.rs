@@ -60,6 +60,7 @@ pub struct StftFrontEnd {
     energy: Vec<f64>,
     frequency_hz: Vec<f64>,
     sample_rate_hz: f64,
+    zero_pad: usize,
 }
 
 impl StftFrontEnd {
@@ -130,6 +131,7 @@ impl StftFrontEnd {
             energy: vec![0.0; bands.len()],
             frequency_hz: vec![f64::NAN; bands.len()],
             sample_rate_hz,
+            zero_pad: settings.zero_pad,
         })
     }
 
@@ -171,7 +173,9 @@ impl StftFrontEnd {
                 }
             }
             self.energy[k] = e;
-            self.frequency_hz[k] = if best.1 == usize::MAX {
+            // Below bin 2 the mirror image at −f overlaps the Hann main lobe (±2 bins): the
+            // window holds less than two periods and the peak position is not the frequency.
+            self.frequency_hz[k] = if best.1 == usize::MAX || best.1 < 2 * self.zero_pad {
                 f64::NAN
             } else {
                 peak_frequency(&self.power, best.1) * self.bin_hz
