@@ -6,7 +6,7 @@ use std::sync::Arc;
 
 use anyhow::Context;
 
-use super::bands_arg::BandArgs;
+use super::bands_arg::{BandArgs, InputFormatArgs};
 use super::compare::DirectionArg;
 use super::{EXIT_OK, EXIT_PARTIAL};
 use crate::frontend::bands::Band;
@@ -18,8 +18,7 @@ use crate::frontend::FrontEnd;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, AnalysisConfig, FrontEndFactory};
 use crate::source::memory::{read_all, MemorySource};
-use crate::source::raw::RawFormat;
-use crate::source::stdin::{open_input, InputOptions};
+use crate::source::stdin::open_input;
 use crate::source::Source;
 
 /// Which time-frequency front end turns samples into band energies.
@@ -70,15 +69,9 @@ pub struct AnalyzeArgs {
     /// A .wav or .csv file, a recording-set directory, or `-` for standard input
     /// (WAV or CSV detected; raw samples with --raw).
     pub input: String,
-    /// Standard input holds raw little-endian interleaved samples of this type.
-    #[arg(long, value_name = "f32|f64")]
-    pub raw: Option<RawFormat>,
-    /// Sample rate in Hz (raw input, or CSV without a time column).
-    #[arg(long = "fs", value_name = "HZ")]
-    pub fs_hz: Option<f64>,
-    /// Number of channels (required for raw input; checked for other inputs).
-    #[arg(long)]
-    pub channels: Option<usize>,
+    /// How to read raw or headerless input.
+    #[command(flatten)]
+    pub input_format: InputFormatArgs,
     /// Front end.
     #[arg(long, value_enum, default_value_t = FrontEndChoice::Stft)]
     pub front_end: FrontEndChoice,
@@ -129,11 +122,7 @@ pub const MAX_WHOLE_SAMPLES: usize = 1 << 27;
 
 /// Runs `analyze`; returns the exit code (0, or 3 when part of the input was damaged).
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
-    let opts = InputOptions {
-        raw: args.raw,
-        fs_hz: args.fs_hz,
-        channels: args.channels,
-    };
+    let opts = args.input_format.options();
     let mut opened = open_input(&args.input, &opts)?;
     let info = opened.source.info().clone();
     let fs = info.sample_rate_hz;

@@ -7,6 +7,8 @@ use crate::frontend::auto_bands::{auto_bands, bands_around_modes, AutoBandSettin
 use crate::frontend::bands::{parse_band, parse_band_range, Band};
 use crate::frontend::iec_bands::{iec_bands, OctaveFraction};
 use crate::frontend::stft::StftSettings;
+use crate::source::raw::RawFormat;
+use crate::source::stdin::InputOptions;
 
 /// Options that choose the bands and the STFT settings.
 #[derive(Debug, Clone, clap::Args)]
@@ -168,4 +170,29 @@ impl BandArgs {
 pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
     let top = (0.4 * sample_rate_hz).min(2025.0);
     parse_band_range(&format!("25:{top}:50"))
+}
+
+/// Options that say how to read raw or headerless input (shared by `analyze` and `compare`).
+#[derive(Debug, Clone, Default, clap::Args)]
+pub struct InputFormatArgs {
+    /// Standard input holds raw little-endian interleaved samples of this type.
+    #[arg(long, value_name = "f32|f64")]
+    pub raw: Option<RawFormat>,
+    /// Sample rate in Hz (raw input, or CSV without a time column).
+    #[arg(long = "fs", value_name = "HZ")]
+    pub fs_hz: Option<f64>,
+    /// Number of channels (required for raw input; checked for other inputs).
+    #[arg(long)]
+    pub channels: Option<usize>,
+}
+
+impl InputFormatArgs {
+    /// The options as the source layer takes them.
+    pub fn options(&self) -> InputOptions {
+        InputOptions {
+            raw: self.raw,
+            fs_hz: self.fs_hz,
+            channels: self.channels,
+        }
+    }
 }

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 
 use super::analyze::{make_front_end, FrontEndChoice};
-use super::bands_arg::BandArgs;
+use super::bands_arg::{BandArgs, InputFormatArgs};
 use crate::analysis::sweep::{run_sweep, write_csv, SweepConfig, SweepRow, SWEEP_FRONT_ENDS};
 use crate::decay::DecayEstimate;
 use crate::error::{Error, Result};
@@ -19,8 +19,7 @@ use crate::frontend::goyder::FilterDirection;
 use crate::frontend::onset::find_onset;
 use crate::frontend::{Band, FrontEnd};
 use crate::pipeline::analyze_decay;
-use crate::source::raw::RawFormat;
-use crate::source::stdin::{open_input, InputOptions};
+use crate::source::stdin::open_input;
 use crate::source::Block;
 
 /// Most samples per channel that `compare` reads (2^27 ≈ 50 min at 44.1 kHz, 1 GiB as f64).
@@ -31,15 +30,9 @@ pub const MAX_COMPARE_SAMPLES: usize = 1 << 27;
 pub struct CompareArgs {
     /// A .wav or .csv file, a recording-set directory, or `-` (not needed with --sweep).
     pub input: Option<String>,
-    /// Standard input holds raw little-endian interleaved samples of this type.
-    #[arg(long, value_name = "f32|f64")]
-    pub raw: Option<RawFormat>,
-    /// Sample rate in Hz (raw input, or CSV without a time column).
-    #[arg(long = "fs", value_name = "HZ")]
-    pub fs_hz: Option<f64>,
-    /// Number of channels (required for raw input; checked for other inputs).
-    #[arg(long)]
-    pub channels: Option<usize>,
+    /// How to read raw or headerless input.
+    #[command(flatten)]
+    pub input_format: InputFormatArgs,
     /// Bands, STFT window and evaluation range (as for analyze). `--bands` also takes
     /// `auto` (one band per spectral peak of each channel's decay), `octave`, `third-octave`.
     #[command(flatten)]
@@ -155,11 +148,7 @@ const HEADER: [&str; 12] = [
 ];
 
 fn read_all(args: &CompareArgs, input: &str) -> anyhow::Result<(f64, Vec<String>, Vec<Vec<f64>>)> {
-    let opts = InputOptions {
-        raw: args.raw,
-        fs_hz: args.fs_hz,
-        channels: args.channels,
-    };
+    let opts = args.input_format.options();
     let mut opened = open_input(input, &opts)?;
     let info = opened.source.info().clone();
     let mut data: Vec<Vec<f64>> = vec![Vec::new(); info.channels()];

@@ -305,31 +305,13 @@ impl GoyderFrontEnd {
                 format!("expected an even order from 2 to 8, got {}", settings.order),
             ));
         }
-        if !(settings.frame_period_ms.is_finite() && settings.frame_period_ms > 0.0) {
-            return Err(Error::setting(
-                "goyder frame period",
-                format!(
-                    "expected a positive number of ms, got {}",
-                    settings.frame_period_ms
-                ),
-            ));
-        }
-        if !(settings.cut_factor.is_finite() && settings.cut_factor >= 0.0) {
-            return Err(Error::setting(
-                "goyder cut factor",
-                format!("expected a finite number >= 0, got {}", settings.cut_factor),
-            ));
-        }
-        let max = settings.max_decay_s * sample_rate_hz;
-        if !(1.0..1e10).contains(&max) {
-            return Err(Error::setting(
-                "goyder max decay",
-                format!(
-                    "expected 1/fs to 1e10/fs seconds, got {} s",
-                    settings.max_decay_s
-                ),
-            ));
-        }
+        super::check_bank_settings(
+            "goyder",
+            sample_rate_hz,
+            settings.frame_period_ms,
+            settings.cut_factor,
+            settings.max_decay_s,
+        )?;
         let hop = (settings.frame_period_ms * 1e-3 * sample_rate_hz)
             .round()
             .max(1.0) as usize;
@@ -350,7 +332,7 @@ impl GoyderFrontEnd {
             sample_rate_hz,
             hop,
             cut_samples,
-            max_samples: max as usize,
+            max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
             buffer: Vec::new(),
             overflowed: false,
             kernel: Kernel::new(bands, settings.order, sample_rate_hz),

@@ -71,3 +71,35 @@ pub trait FrontEnd: Send {
     /// A short name for tables and logs (`stft`, `goyder`, `octave`).
     fn name(&self) -> &'static str;
 }
+
+/// Checks the settings that the buffering filter banks (Goyder, octave) share: frame period in ms
+/// (> 0), the transient cut factor (≥ 0) and the longest decay buffered in s (1/fs to 1e10/fs).
+/// `bank` names the bank in the error.
+pub(crate) fn check_bank_settings(
+    bank: &str,
+    sample_rate_hz: f64,
+    frame_period_ms: f64,
+    cut_factor: f64,
+    max_decay_s: f64,
+) -> crate::error::Result<()> {
+    use crate::error::Error;
+    if !(frame_period_ms.is_finite() && frame_period_ms > 0.0) {
+        return Err(Error::setting(
+            format!("{bank} frame period"),
+            format!("expected a positive number of ms, got {frame_period_ms}"),
+        ));
+    }
+    if !(cut_factor.is_finite() && cut_factor >= 0.0) {
+        return Err(Error::setting(
+            format!("{bank} cut factor"),
+            format!("expected a finite number >= 0, got {cut_factor}"),
+        ));
+    }
+    if !(1.0..1e10).contains(&(max_decay_s * sample_rate_hz)) {
+        return Err(Error::setting(
+            format!("{bank} max decay"),
+            format!("expected 1/fs to 1e10/fs seconds, got {max_decay_s} s"),
+        ));
+    }
+    Ok(())
+}

@@ -141,31 +141,13 @@ impl OctaveBankFrontEnd {
                 format!("expected a positive sample rate in Hz, got {sample_rate_hz}"),
             ));
         }
-        if !(settings.frame_period_ms.is_finite() && settings.frame_period_ms > 0.0) {
-            return Err(Error::setting(
-                "octave frame period",
-                format!(
-                    "expected a positive number of ms, got {}",
-                    settings.frame_period_ms
-                ),
-            ));
-        }
-        if !(settings.cut_factor.is_finite() && settings.cut_factor >= 0.0) {
-            return Err(Error::setting(
-                "octave cut factor",
-                format!("expected a finite number >= 0, got {}", settings.cut_factor),
-            ));
-        }
-        let max = settings.max_decay_s * sample_rate_hz;
-        if !(1.0..1e10).contains(&max) {
-            return Err(Error::setting(
-                "octave max decay",
-                format!(
-                    "expected 1/fs to 1e10/fs seconds, got {} s",
-                    settings.max_decay_s
-                ),
-            ));
-        }
+        super::check_bank_settings(
+            "octave",
+            sample_rate_hz,
+            settings.frame_period_ms,
+            settings.cut_factor,
+            settings.max_decay_s,
+        )?;
         let filters = bands
             .iter()
             .map(|b| {
@@ -198,7 +180,7 @@ impl OctaveBankFrontEnd {
             filters,
             hop,
             cut_samples,
-            max_samples: max as usize,
+            max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
             buffer: Vec::new(),
             overflowed: false,
             acc: vec![0.0; nb],
