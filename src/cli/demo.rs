@@ -153,8 +153,25 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
             report: "0.35…0.73 over phase (METHODS §1)",
         });
     }
+    for (f, d) in [(400.0, 0.01), (800.0, 0.02)] {
+        cases.push(Case {
+            name: if f < 500.0 {
+                "single mode 400 Hz, Goyder bank (reversed)"
+            } else {
+                "single mode 800 Hz, Goyder bank (reversed)"
+            },
+            front_end: FrontEndChoice::Goyder,
+            modes: vec![mode(f, d, 1.0, 0.0)],
+            seconds: 2.0,
+            window_ms: 0.0,
+            band: (f - 20.0, f + 20.0),
+            range: EvaluationRange::T20,
+            truth_pct: 100.0 * d,
+            report: "filter bank (sec. 3.5 outlook)",
+        });
+    }
     println!(
-        "dampscope demo: synthetic decays (report eq. 4.5), fs = {fs} Hz, STFT Hann, 50 % overlap"
+        "dampscope demo: synthetic decays (report eq. 4.5), fs = {fs} Hz, STFT Hann 50 % overlap or Goyder bank"
     );
     println!(
         "{:<48} {:>7} {:>11} {:>5} {:>7} {:>7} {:>9}  {:<22} report",
