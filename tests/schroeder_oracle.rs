@@ -80,3 +80,21 @@ fn provisional_estimate_is_available_while_frames_arrive() {
     let got = online.provisional().t30_s.unwrap();
     assert!((got / want - 1.0).abs() < 1e-6, "{got} vs {want}");
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(500))]
+
+    /// Lundeby's iteration on any non-negative sequence returns a result or a failure, never panics.
+    #[test]
+    fn lundeby_never_panics(
+        e in prop::collection::vec(prop_oneof![Just(0.0), 0.0f64..1.0, 1e-12f64..1e-6], 0..300),
+        rate in 1.0f64..5000.0,
+        block in 0.0005f64..0.2,
+    ) {
+        use dampscope::decay::lundeby::{lundeby, FirstRegressionEnd, LundebySettings};
+        for end in [FirstRegressionEnd::LastAbove, FirstRegressionEnd::FirstBelow] {
+            let s = LundebySettings { initial_block_s: block, first_regression_end: end, ..Default::default() };
+            let _ = lundeby(&e, rate, &s);
+        }
+    }
+}

@@ -120,7 +120,7 @@ pub fn lundeby(
     // (3) first regression from the peak to the last block 10 dB above the noise.
     let start = argmax(&smoothed);
     let limit = db(noise0) + settings.db_above_noise;
-    let inner = &smoothed[(start + 1).min(smoothed.len())..smoothed.len() - 1];
+    let inner = &smoothed[(start + 1).min(smoothed.len() - 1)..smoothed.len() - 1];
     let found = match settings.first_regression_end {
         FirstRegressionEnd::LastAbove => inner.iter().rposition(|&x| db(x) > limit),
         FirstRegressionEnd::FirstBelow => inner.iter().position(|&x| db(x) <= limit),
@@ -224,6 +224,23 @@ pub fn compensated_edc(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn energy_that_peaks_at_the_end_is_an_error_not_a_panic() {
+        // Found by the Schroeder proptest: the peak block was the last one.
+        let e: Vec<f64> = (0..40).map(|k| (0.2 * k as f64).exp()).collect();
+        for end in [
+            FirstRegressionEnd::LastAbove,
+            FirstRegressionEnd::FirstBelow,
+        ] {
+            let s = LundebySettings {
+                initial_block_s: 0.1,
+                first_regression_end: end,
+                ..Default::default()
+            };
+            assert!(lundeby(&e, 10.0, &s).is_err());
+        }
+    }
 
     #[test]
     fn short_frame_rate_decay_into_noise() {
