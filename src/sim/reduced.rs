@@ -5,9 +5,13 @@
 //! a cut-off well above the analysed fmax) and R holds
 //!
 //! - the static residual K₀⁻¹ f (the quasi-static contribution of every truncated mode), and
-//! - for each stiffness region r (when there are several), K₀⁻¹ K_r K₀⁻¹ f: the first term of
-//!   the Neumann series of the regional perturbation, so that a damped or viscoelastic region's
-//!   effect on the truncated modes is represented.
+//! - for each region r whose stiffness factor differs from the first region's (a patch with
+//!   another loss factor, or an SLS region): K₀⁻¹ K_r K₀⁻¹ f and K₀⁻¹ K_r φ_i for the modes
+//!   below the analysed fmax — the static (first-order) part of how the region's different
+//!   complex, possibly frequency-dependent stiffness couples the kept modes to truncated ones.
+//!
+//! Without the region vectors a damped patch misses ~65 % per band on a lattice test (see
+//! tests/sim_frf.rs); with them fast vs direct is < 1 % per 50 Hz band.
 //!
 //! M, every K_r and C are projected once (dense m × m). Per frequency the small complex system
 //! (Σ_r s_r(ω) K̂_r + jω Ĉ − ω² M̂) q = Vᵀ f is solved and mapped to the sensors with (S V) q.
