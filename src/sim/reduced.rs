@@ -245,6 +245,40 @@ fn factor_only(t: &super::system::StiffnessTerm) -> Result<super::system::Stiffn
     })
 }
 
+/// Solves A q = b by a dense partial-pivoting LU in place, single-threaded (the callers already
+/// run one frequency per thread; nested parallelism would oversubscribe the cores).
+fn lu_solve_sequential(a: &mut Mat<c64>, b: MatRef<'_, c64>) -> Vec<c64> {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::lu::partial_pivoting::{factor, solve};
+    let m = a.nrows();
+    let mut perm = vec![0usize; m];
+    let mut perm_inv = vec![0usize; m];
+    let mut mem = MemBuffer::new(
+        factor::lu_in_place_scratch::<usize, c64>(m, m, Par::Seq, Default::default()).or(
+            solve::solve_in_place_scratch::<usize, c64>(m, 1, Par::Seq),
+        ),
+    );
+    let (_, p) = factor::lu_in_place(
+        a.as_mut(),
+        &mut perm,
+        &mut perm_inv,
+        Par::Seq,
+        MemStack::new(&mut mem),
+        Default::default(),
+    );
+    let mut x = b.to_owned();
+    solve::solve_in_place_with_conj(
+        a.as_ref(),
+        a.as_ref(),
+        p,
+        faer::Conj::No,
+        x.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut mem),
+    );
+    x.col(0).iter().copied().collect()
+}
+
 /// The reduced (projected) model: everything the per-frequency solve needs.
 pub struct ReducedModel {
     /// Basis size m (modes + residual vectors).
@@ -370,9 +404,8 @@ impl ReducedModel {
     fn q_by_lu(&self, freqs_hz: &[f64]) -> Result<Mat<c64>, FrfError> {
         let b = Mat::<c64>::from_fn(self.size, 1, |i, _| c64::new(self.b[i], 0.0));
         let rows = parallel_rows(freqs_hz, 2, |f| {
-            let a = self.dynamic_stiffness(2.0 * std::f64::consts::PI * f);
-            let q = a.partial_piv_lu().solve(b.as_ref());
-            let q: Vec<c64> = q.col(0).iter().copied().collect();
+            let mut a = self.dynamic_stiffness(2.0 * std::f64::consts::PI * f);
+            let q = lu_solve_sequential(&mut a, b.as_ref());
             if q.iter().any(|z| !z.re.is_finite() || !z.im.is_finite()) {
                 return Err(FrfError::Factorisation {
                     what: format!("reduced dynamic stiffness at {f} Hz"),
