@@ -50,6 +50,14 @@ impl Source for Memory {
     }
 }
 
+/// Every sample goes through the STFT: no early end of the decay.
+fn no_early_end() -> AnalysisConfig {
+    AnalysisConfig {
+        end_drop_db: f64::INFINITY,
+        ..Default::default()
+    }
+}
+
 fn factory(fs: f64) -> FrontEndFactory {
     let bands = default_bands(fs).unwrap();
     Arc::new(move || {
@@ -69,12 +77,7 @@ fn analyzer(c: &mut Criterion) {
             &x,
             |b, x| {
                 b.iter(|| {
-                    let mut an = ChannelAnalyzer::new(
-                        "c".into(),
-                        fs,
-                        f().unwrap(),
-                        AnalysisConfig::default(),
-                    );
+                    let mut an = ChannelAnalyzer::new("c".into(), fs, f().unwrap(), no_early_end());
                     let mut rows = Vec::new();
                     for chunk in x.chunks(4096) {
                         an.push(chunk, &mut rows);
@@ -113,7 +116,7 @@ fn pipeline_bench(c: &mut Criterion) {
                     pos: 0,
                 };
                 let mut n = 0;
-                pipeline::run(Box::new(src), &f, &AnalysisConfig::default(), |rows| {
+                pipeline::run(Box::new(src), &f, &no_early_end(), |rows| {
                     n += rows.len();
                     Ok(())
                 })

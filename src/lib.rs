@@ -16,12 +16,14 @@
 //! [`decay::DecayEstimator`] turns one band's energy sequence into a [`decay::DecayEstimate`].
 //! Plain data structs travel between them.
 
+pub mod analysis;
 pub mod cli;
 pub mod decay;
 pub mod error;
 pub mod frontend;
 pub mod output;
 pub mod pipeline;
+pub mod plot;
 pub mod sim;
 pub mod source;
 

@@ -86,8 +86,22 @@ pub fn analyze_decay(
     trackers
         .estimators
         .iter()
-        .map(|e| e.provisional())
+        .zip(front_end.bands())
+        .map(|(e, band)| {
+            let mut est = e.provisional();
+            flag_off_band(&mut est, band);
+            est
+        })
         .collect()
+}
+
+/// Raises [`Flag::OffBandDominant`] when the dominant frequency lies outside `band`.
+fn flag_off_band(est: &mut DecayEstimate, band: &Band) {
+    if let Some(f) = est.f_dominant_hz {
+        if f < band.lo_hz || f > band.hi_hz {
+            est.flags.push(Flag::OffBandDominant);
+        }
+    }
 }
 
 /// Per-band estimators plus the end-of-decay test.
@@ -232,9 +246,12 @@ impl ChannelAnalyzer {
             .estimators
             .iter()
             .zip(&self.band_in_range)
-            .map(|(e, &ok)| {
+            .zip(self.front_end.bands())
+            .map(|((e, &ok), band)| {
                 let mut est = if ok {
-                    e.provisional()
+                    let mut est = e.provisional();
+                    flag_off_band(&mut est, band);
+                    est
                 } else {
                     DecayEstimate::failed(Flag::BandOutOfRange)
                 };

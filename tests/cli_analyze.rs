@@ -23,10 +23,24 @@ fn dampscope(args: &[&str], stdin: &[u8]) -> Output {
 
 fn synth(format: &str) -> Vec<u8> {
     let out = dampscope(
-        &["synth", "--mode", "55:0.025", "--fs", "4000", "--seconds", "4", "--format", format],
+        &[
+            "synth",
+            "--mode",
+            "55:0.025",
+            "--fs",
+            "4000",
+            "--seconds",
+            "4",
+            "--format",
+            format,
+        ],
         b"",
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out.stdout
 }
 
@@ -46,7 +60,11 @@ fn wav_piped_from_synth_is_analysed() {
     let wav = synth("wav");
     assert_eq!(&wav[..4], b"RIFF");
     let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], &wav);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let d: f64 = cell(&text, "damping_ratio_corrected").parse().unwrap();
     assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
@@ -56,10 +74,27 @@ fn wav_piped_from_synth_is_analysed() {
 fn raw_f32_piped_from_synth_is_analysed() {
     let raw = synth("raw-f32");
     let out = dampscope(
-        &["analyze", "-", "--raw", "f32", "--fs", "4000", "--channels", "1", "--band", "52.5:57.5", "--format", "jsonl"],
+        &[
+            "analyze",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4000",
+            "--channels",
+            "1",
+            "--band",
+            "52.5:57.5",
+            "--format",
+            "jsonl",
+        ],
         &raw,
     );
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let line = String::from_utf8(out.stdout).unwrap();
     let v: serde_json::Value = serde_json::from_str(line.lines().next().unwrap()).unwrap();
     let d = v["damping_ratio_corrected"].as_f64().unwrap();
@@ -70,7 +105,11 @@ fn raw_f32_piped_from_synth_is_analysed() {
 fn csv_input_is_analysed() {
     let csv = synth("csv");
     let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], &csv);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     let d: f64 = cell(&text, "damping_ratio_corrected").parse().unwrap();
     assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
@@ -78,7 +117,10 @@ fn csv_input_is_analysed() {
 
 #[test]
 fn garbage_input_is_a_clear_error() {
-    let out = dampscope(&["analyze", "-"], &[0u8, 159, 146, 150, 1, 2, 3, 255, 0, 0, 7]);
+    let out = dampscope(
+        &["analyze", "-"],
+        &[0u8, 159, 146, 150, 1, 2, 3, 255, 0, 0, 7],
+    );
     assert_clean(&out);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
@@ -96,10 +138,16 @@ fn empty_input_is_a_clear_error() {
 #[test]
 fn truncated_wav_flushes_partial_results_and_exits_3() {
     let wav = synth("wav");
-    let cut = &wav[..wav.len() / 2 + 1];
+    // Cut after ~1 s, while the decay (100 dB down only after ~1.3 s) is still running.
+    let cut = &wav[..wav.len() / 4 + 1];
     let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], cut);
     assert_clean(&out);
-    assert_eq!(out.status.code(), Some(3), "{}", String::from_utf8_lossy(&out.stderr));
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(cell(&text, "flags").contains("input_truncated"), "{text}");
     assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"));
@@ -109,7 +157,21 @@ fn truncated_wav_flushes_partial_results_and_exits_3() {
 fn truncated_raw_frame_is_reported() {
     let mut raw = synth("raw-f32");
     raw.truncate(raw.len() - 2);
-    let out = dampscope(&["analyze", "-", "--raw", "f32", "--fs", "4000", "--channels", "1", "--band", "52.5:57.5"], &raw);
+    let out = dampscope(
+        &[
+            "analyze",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4000",
+            "--channels",
+            "1",
+            "--band",
+            "52.5:57.5",
+        ],
+        &raw,
+    );
     assert_clean(&out);
     assert_eq!(out.status.code(), Some(3));
 }
@@ -146,9 +208,26 @@ fn recording_set_directory_is_analysed() {
         eprintln!("skipped: {} not found", dir.display());
         return;
     }
-    let out = dampscope(&["analyze", dir.to_str().unwrap(), "--window-ms", "50", "--bands", "0:200:20", "--range", "t20"], b"");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = dampscope(
+        &[
+            "analyze",
+            dir.to_str().unwrap(),
+            "--window-ms",
+            "50",
+            "--bands",
+            "0:200:20",
+            "--range",
+            "t20",
+        ],
+        b"",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let rows = dampscope::output::read_table(&String::from_utf8(out.stdout).unwrap()).unwrap();
-    let channels: std::collections::BTreeSet<_> = rows.iter().map(|r| r["channel"].clone()).collect();
+    let channels: std::collections::BTreeSet<_> =
+        rows.iter().map(|r| r["channel"].clone()).collect();
     assert_eq!(channels.len(), 4, "{channels:?}");
 }

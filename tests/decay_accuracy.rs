@@ -107,3 +107,15 @@ fn close_modes_beat_and_the_estimate_depends_on_their_relative_phase() {
     let est = stft_estimate(&single, fs, 200.0, 52.5, 62.5, EvaluationRange::T20);
     assert!(!est.has(Flag::NonlinearDecay), "{:?}", est);
 }
+
+#[test]
+fn energy_leaking_in_from_a_neighbouring_mode_is_flagged() {
+    // A 30 Hz mode seen through the 0–20 Hz band of a 50 ms STFT (20 Hz bins): the band holds
+    // only the mode's leakage, and says so.
+    let fs = 4000.0;
+    let x = decaying_sines(&[(30.0, 0.02, 1.0, 0.0)], fs, 6.0);
+    let est = stft_estimate(&x, fs, 50.0, 0.0, 20.0, EvaluationRange::T20);
+    assert!(est.has(Flag::OffBandDominant), "{:?}", est);
+    let inside = stft_estimate(&x, fs, 50.0, 20.0, 40.0, EvaluationRange::T20);
+    assert!(!inside.has(Flag::OffBandDominant), "{:?}", inside);
+}

@@ -295,3 +295,63 @@ fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
     ));
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// The measured reference RIRs (PCM16, 44.1 and 96 kHz) stream to exactly hound's samples / 2^15.
+#[test]
+fn reference_pcm16_wavs_match_hound() {
+    for name in ["living_room_1.wav", "ir_sportscentre_omni.wav"] {
+        let path = format!("/work/shared/reference/rir/{name}");
+        let mut h = hound::WavReader::open(&path).unwrap();
+        let spec = h.spec();
+        let want: Vec<f64> = h
+            .samples::<i16>()
+            .map(|s| f64::from(s.unwrap()) / 32768.0)
+            .collect();
+        let mut o = open_input(&path, &InputOptions::default()).unwrap();
+        assert_eq!(o.source.info().sample_rate_hz, f64::from(spec.sample_rate));
+        assert_eq!(o.source.info().channels(), usize::from(spec.channels));
+        let (got, err) = drain(o.source.as_mut(), 4096);
+        assert!(err.is_none(), "{name}: {err:?}");
+        assert_eq!(got[0], want, "{name}");
+    }
+}
+
+fn small_wav() -> Vec<u8> {
+    let mut wav = Vec::new();
+    write_wav_f32(
+        &mut wav,
+        4000,
+        &[vec![0.5, -1.0, 2.0], vec![1.0, 0.0, -3.0]],
+    )
+    .unwrap();
+    wav
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(3000))]
+    /// A valid WAV or CSV with random bytes overwritten and a random cut: samples or a typed
+    /// error, never a panic, whatever the block size.
+    #[test]
+    fn mutated_inputs_never_panic(
+        csv in any::<bool>(),
+        edits in prop::collection::vec((0usize..200, any::<u8>()), 0..6),
+        cut in 0usize..200,
+        block in 1usize..8,
+    ) {
+        let mut bytes = if csv {
+            b"# fs=100\ntime,a,b\n0,1,2\n0.01,3,4\n0.02,5,6\n".to_vec()
+        } else {
+            small_wav()
+        };
+        for (pos, val) in edits {
+            if let Some(b) = bytes.get_mut(pos) {
+                *b = val;
+            }
+        }
+        bytes.truncate(cut.min(bytes.len()));
+        if let Ok(mut s) = open_stream(Cursor::new(bytes), "stdin", &InputOptions::default()) {
+            let (got, _) = drain(s.as_mut(), block);
+            prop_assert!(got.iter().all(|c| c.len() == got[0].len()));
+        }
+    }
+}

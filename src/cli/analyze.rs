@@ -93,7 +93,10 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
     let info = opened.source.info().clone();
     let factory = front_end_factory(args.front_end, &args.bands, info.sample_rate_hz)?;
     if let Some(s) = args.max_decay_s {
-        anyhow::ensure!(s > 0.0, "invalid setting --max-decay-s: expected > 0, got {s}");
+        anyhow::ensure!(
+            s > 0.0,
+            "invalid setting --max-decay-s: expected > 0, got {s}"
+        );
     }
     let config = AnalysisConfig {
         estimate: args.bands.estimate()?,
@@ -111,10 +114,14 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
     };
     let mut writer = TableWriter::new(out, args.format);
     writer.write_header()?;
-    let summary = pipeline::run(opened.source, &factory, &config, |rows| writer.write_rows(rows))?;
+    let summary = pipeline::run(opened.source, &factory, &config, |rows| {
+        writer.write_rows(rows)
+    })?;
     let mut code = EXIT_OK;
     if let Some(e) = &summary.input_error {
-        eprintln!("dampscope: warning: {e}; results up to that point were written (flag input_truncated)");
+        eprintln!(
+            "dampscope: warning: {e}; results up to that point were written (flag input_truncated)"
+        );
         code = EXIT_PARTIAL;
     }
     if !summary.non_finite_channels.is_empty() {

@@ -44,10 +44,12 @@ impl BandArgs {
 
     /// The estimate settings given.
     pub fn estimate(&self) -> Result<EstimateSettings> {
-        let range: EvaluationRange = self
-            .range
-            .parse()
-            .map_err(|e: crate::decay::range::RangeParseError| Error::setting("--range", e.to_string()))?;
+        let range: EvaluationRange =
+            self.range
+                .parse()
+                .map_err(|e: crate::decay::range::RangeParseError| {
+                    Error::setting("--range", e.to_string())
+                })?;
         if self.min_points < 2 {
             return Err(Error::setting(
                 "--min-points",

@@ -137,7 +137,9 @@ pub fn run(_args: &DemoArgs) -> anyhow::Result<()> {
             report: "0.35…0.73 over phase (METHODS §1)",
         });
     }
-    println!("dampscope demo: synthetic decays (report eq. 4.5), fs = {fs} Hz, STFT Hann, 50 % overlap");
+    println!(
+        "dampscope demo: synthetic decays (report eq. 4.5), fs = {fs} Hz, STFT Hann, 50 % overlap"
+    );
     println!(
         "{:<48} {:>7} {:>11} {:>5} {:>7} {:>7} {:>9}  {:<22} report",
         "case", "window", "band Hz", "range", "true %", "D %", "D_corr %", "flags"

@@ -3,7 +3,9 @@
 
 pub mod analyze;
 pub mod bands_arg;
+pub mod compare;
 pub mod demo;
+pub mod modes;
 pub mod simulate;
 pub mod synth;
 
@@ -36,6 +38,12 @@ pub enum Command {
     Analyze(analyze::AnalyzeArgs),
     /// Run the built-in demonstration: the report's reference cases, no input files needed.
     Demo(demo::DemoArgs),
+    /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
+    Modes(modes::ModesArgs),
+    /// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
+    Simulate(simulate::SimulateArgs),
+    /// Write decaying sines (report eq. 4.5) as WAV, raw f32 or CSV (stdout or --out).
+    Synth(synth::SynthArgs),
 }
 
 /// Parses the command line, runs the command and returns the process exit code.
@@ -51,6 +59,9 @@ pub fn main_exit_code() -> i32 {
     let result = match &cli.command {
         Command::Analyze(args) => analyze::run(args),
         Command::Demo(args) => demo::run(args).map(|_| EXIT_OK),
+        Command::Synth(args) => synth::run(args).map(|_| EXIT_OK),
+        Command::Simulate(args) => simulate::run(args).map(|_| EXIT_OK),
+        Command::Modes(args) => modes::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

@@ -23,7 +23,7 @@ pub enum SynthFormat {
 /// Options of `dampscope synth`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct SynthArgs {
-    /// A decaying sine F:D[:A[:PSI]]: frequency in Hz, damping ratio, amplitude (default 1),
+    /// A decaying sine `F:D[:A[:PSI]]`: frequency in Hz, damping ratio, amplitude (default 1),
     /// phase in degrees (default 0). Repeat for several modes.
     #[arg(long = "mode", value_name = "F:D[:A[:PSI]]", required = true)]
     pub modes: Vec<Mode>,

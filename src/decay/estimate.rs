@@ -33,6 +33,9 @@ pub enum Flag {
     NonFiniteInput,
     /// The input ended in the middle of a sample frame or before the length its header announced.
     InputTruncated,
+    /// The frequency carrying the band's energy lies outside the band: the decay measured is
+    /// leakage of a neighbouring mode (the report's nodal-line effect, section 3.2).
+    OffBandDominant,
     /// A noise floor was found; the curve was truncated at Lundeby's intersection time and its
     /// tail compensated (ISO 3382 practice).
     NoiseCompensated,
@@ -55,6 +58,7 @@ impl Flag {
             Flag::InputTruncated => "input_truncated",
             Flag::BandOutOfRange => "band_out_of_range",
             Flag::NoiseCompensated => "noise_compensated",
+            Flag::OffBandDominant => "off_band_dominant",
         }
     }
 }

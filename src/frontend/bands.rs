@@ -69,7 +69,7 @@ pub fn parse_band(text: &str) -> Result<Band> {
 pub fn parse_band_range(text: &str) -> Result<Vec<Band>> {
     let v = parse_numbers(text, "--bands", 3)?;
     let (lo, hi, width) = (v[0], v[1], v[2]);
-    if !(width > 0.0 && hi > lo && lo >= 0.0) || !(hi - lo).is_finite() {
+    if !(width > 0.0 && hi > lo && lo >= 0.0 && (hi - lo).is_finite()) {
         return Err(Error::setting(
             "--bands",
             format!("expected 0 <= LO < HI and WIDTH > 0, got '{text}'"),

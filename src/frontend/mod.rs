@@ -5,7 +5,11 @@
 //! instance serves one channel and one decay at a time; [`FrontEnd::reset`] prepares it for the
 //! next decay.
 
+pub mod auto_bands;
 pub mod bands;
+pub mod goyder;
+pub mod iec_bands;
+pub mod octave_bank;
 pub mod onset;
 pub mod stft;
 

@@ -78,7 +78,7 @@ impl StftFrontEnd {
             ));
         }
         let win_len = (settings.window_ms * 1e-3 * sample_rate_hz).round();
-        if !(win_len >= 4.0 && win_len <= 1e8) {
+        if !(4.0..=1e8).contains(&win_len) {
             return Err(Error::setting(
                 "--window-ms",
                 format!(
@@ -108,7 +108,7 @@ impl StftFrontEnd {
                 s * s
             })
             .collect();
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+        let fft = shared_plan(nfft);
         let n_bins = nfft / 2 + 1;
         let bin_hz = sample_rate_hz / nfft as f64;
         let band_bins = bands
@@ -181,6 +181,19 @@ impl StftFrontEnd {
             energy: &self.energy,
             frequency_hz: &self.frequency_hz,
         });
+    }
+}
+
+/// FFT plans are shared by every front end of the process (one per length): planning costs more
+/// than a short decay's transforms, and a 64-channel run would otherwise plan 64 times.
+fn shared_plan(nfft: usize) -> Arc<dyn RealToComplex<f64>> {
+    static PLANNER: std::sync::OnceLock<std::sync::Mutex<RealFftPlanner<f64>>> =
+        std::sync::OnceLock::new();
+    let planner = PLANNER.get_or_init(|| std::sync::Mutex::new(RealFftPlanner::new()));
+    match planner.lock() {
+        Ok(mut p) => p.plan_fft_forward(nfft),
+        // A panic elsewhere while planning poisons the lock; a fresh planner is as good.
+        Err(_) => RealFftPlanner::new().plan_fft_forward(nfft),
     }
 }
 

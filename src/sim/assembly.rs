@@ -15,7 +15,9 @@
 
 use faer::sparse::{SparseColMat, Triplet};
 
-use super::element::{elasticity, hex8_incompatible_stiffness, hex8_mass, Mat24};
+use super::element::{
+    elasticity, hex8_incompatible_internal, hex8_incompatible_stiffness, hex8_mass, Mat33,
+};
 use super::error::SimError;
 use super::mesh::Mesh;
 use super::model::{Edge, Model};
@@ -84,19 +86,12 @@ pub fn sparse_from_triplets(
     })
 }
 
-/// Scatters a 24 × 24 element matrix into triplets over the free dofs.
-fn scatter(
+/// Scatters an element matrix over element dofs `dofs` (`None`: constrained) into triplets.
+fn scatter<const D: usize>(
     out: &mut Vec<Triplet<usize, usize, f64>>,
-    ke: &Mat24,
-    nodes: &[usize; 8],
-    map: &DofMap,
+    ke: &nalgebra::SMatrix<f64, D, D>,
+    dofs: &[Option<usize>; D],
 ) {
-    let mut dofs = [None; 24];
-    for (a, &n) in nodes.iter().enumerate() {
-        for c in 0..3 {
-            dofs[3 * a + c] = map.free[3 * n + c];
-        }
-    }
     for (q, dq) in dofs.iter().enumerate() {
         let Some(col) = *dq else { continue };
         for (p, dp) in dofs.iter().enumerate() {
@@ -107,6 +102,34 @@ fn scatter(
     }
 }
 
+/// The free indices of an element's dofs: 24 nodal, then (for [`Formulation::InternalDofs`])
+/// its 9 incompatible-mode dofs numbered after all nodal free dofs.
+fn element_dofs(nodes: &[usize; 8], map: &DofMap, element: usize) -> [Option<usize>; 33] {
+    let mut dofs = [None; 33];
+    for (a, &n) in nodes.iter().enumerate() {
+        for c in 0..3 {
+            dofs[3 * a + c] = map.free[3 * n + c];
+        }
+    }
+    for (i, d) in dofs[24..].iter_mut().enumerate() {
+        *d = Some(map.n_free + 9 * element + i);
+    }
+    dofs
+}
+
+/// How the incompatible modes enter the global system.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Formulation {
+    /// CalculiX C3D8I: the 9 incompatible-mode amplitudes of every element stay as internal
+    /// dofs carrying the bubbles' consistent mass (n_free grows by 9 per element; sensors and
+    /// forces act on nodal dofs only). Matches the CalculiX reference frequencies.
+    #[default]
+    InternalDofs,
+    /// Wilson–Taylor with static condensation (K_e = K_uu − K_uα K_αα⁻¹ K_αu, nodal mass only):
+    /// fewer dofs, slightly stiffer in dynamics (Guyan reduction of the above).
+    Condensed,
+}
+
 /// Interpolation of a mid-plane point onto free dofs of component `c` (constrained dofs drop).
 fn point_dofs(mesh: &Mesh, map: &DofMap, x_m: f64, y_m: f64, c: usize) -> Vec<(usize, f64)> {
     mesh.midplane_weights(x_m, y_m)
@@ -115,13 +138,17 @@ fn point_dofs(mesh: &Mesh, map: &DofMap, x_m: f64, y_m: f64, c: usize) -> Vec<(u
         .collect()
 }
 
-/// Assembles the model into an [`FeSystem`] over the free dofs.
+/// Assembles the model into an [`FeSystem`] over the free dofs ([`Formulation::InternalDofs`]).
 pub fn assemble(model: &Model) -> Result<FeSystem, SimError> {
+    assemble_with(model, Formulation::default())
+}
+
+/// Assembles the model with a chosen [`Formulation`] of the incompatible modes.
+pub fn assemble_with(model: &Model, formulation: Formulation) -> Result<FeSystem, SimError> {
     model.validate()?;
     let mesh = Mesh::new(model);
     let map = DofMap::new(model, &mesh)?;
-    let n = map.n_free;
-    if n == 0 {
+    if map.n_free == 0 {
         return Err(SimError::InvalidValue {
             key: "supports.pinned_edges".into(),
             message: "every dof is constrained".into(),
@@ -133,6 +160,7 @@ pub fn assemble(model: &Model) -> Result<FeSystem, SimError> {
         .chain(model.patches.iter().map(|p| model.material_of_patch(p)))
         .collect();
     // Element matrices once per region (elements are equal boxes).
+    let internal = formulation == Formulation::InternalDofs;
     let mut kes = Vec::with_capacity(n_regions);
     let mut mes = Vec::with_capacity(n_regions);
     for (r, m) in materials.iter().enumerate() {
@@ -141,23 +169,40 @@ pub fn assemble(model: &Model) -> Result<FeSystem, SimError> {
             .iter()
             .position(|&x| x == r)
             .unwrap_or(0);
-        kes.push(hex8_incompatible_stiffness(
-            &coords,
-            &elasticity(m.youngs_modulus, m.poisson),
-            first,
-        )?);
-        mes.push(hex8_mass(&coords, m.density));
+        let c = elasticity(m.youngs_modulus, m.poisson);
+        if internal {
+            let (k, mm) = hex8_incompatible_internal(&coords, &c, m.density, first)?;
+            kes.push(k);
+            mes.push(mm);
+        } else {
+            let mut k = Mat33::zeros();
+            let mut mm = Mat33::zeros();
+            k.fixed_view_mut::<24, 24>(0, 0)
+                .copy_from(&hex8_incompatible_stiffness(&coords, &c, first)?);
+            mm.fixed_view_mut::<24, 24>(0, 0)
+                .copy_from(&hex8_mass(&coords, m.density));
+            kes.push(k);
+            mes.push(mm);
+        }
     }
+    let n = if internal {
+        map.n_free + 9 * mesh.n_elements()
+    } else {
+        map.n_free
+    };
     let mut k_trip: Vec<Vec<Triplet<usize, usize, f64>>> = vec![Vec::new(); n_regions];
-    let mut m_trip = Vec::with_capacity(mesh.n_elements() * 576);
+    let mut m_trip = Vec::with_capacity(mesh.n_elements() * 33 * 33);
     for k in 0..mesh.nz {
         for j in 0..mesh.ny {
             for i in 0..mesh.nx {
                 let e = (k * mesh.ny + j) * mesh.nx + i;
                 let r = mesh.region_of_element[e];
-                let nodes = mesh.element_nodes(i, j, k);
-                scatter(&mut k_trip[r], &kes[r], &nodes, &map);
-                scatter(&mut m_trip, &mes[r], &nodes, &map);
+                let mut dofs = element_dofs(&mesh.element_nodes(i, j, k), &map, e);
+                if !internal {
+                    dofs[24..].iter_mut().for_each(|d| *d = None);
+                }
+                scatter(&mut k_trip[r], &kes[r], &dofs);
+                scatter(&mut m_trip, &mes[r], &dofs);
             }
         }
     }
@@ -260,7 +305,12 @@ fn edge_spring_triplets(
     let n_pts = lines[0].0.len();
     let mut out = Vec::new();
     for s in 0..n_pts - 1 {
-        for (pa, pb, coef) in [(s, s, 2.0), (s, s + 1, 1.0), (s + 1, s, 1.0), (s + 1, s + 1, 2.0)] {
+        for (pa, pb, coef) in [
+            (s, s, 2.0),
+            (s, s + 1, 1.0),
+            (s + 1, s, 1.0),
+            (s + 1, s + 1, 2.0),
+        ] {
             for (la, wa) in &lines {
                 for (lb, wb) in &lines {
                     let (Some(r), Some(c)) = (map.free[3 * la[pa] + 2], map.free[3 * lb[pb] + 2])

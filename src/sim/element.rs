@@ -1,9 +1,12 @@
 //! The 8-node hexahedron with incompatible modes (Wilson–Taylor with Taylor's correction,
 //! METHODS.md §5.2; the formulation of CalculiX C3D8I / Nastran CHEXA) and its consistent mass.
 //!
-//! The displacement is u = Σ N_a u_a + Σ_k P_k α_k with the bubbles P_k = 1 − ξ_k²; the 9
-//! internal dofs α are condensed statically, so the element has 24 dofs (node a, component c →
-//! 3a + c). Strains in Voigt order xx, yy, zz, yz, xz, xy with engineering shears.
+//! The displacement is u = Σ N_a u_a + Σ_k P_k α_k with the bubbles P_k = 1 − ξ_k² and 9
+//! internal dofs α. Two forms: [`hex8_incompatible_stiffness`] condenses α statically (24 dofs,
+//! node a, component c → 3a + c, mass of the nodal part only); [`hex8_incompatible_internal`]
+//! keeps α as 9 extra dofs with the bubbles' consistent mass, as CalculiX's C3D8I does (its
+//! 2 × 2 × 2 Gauss mass is only semi-definite: each P_k is 2/3 at every Gauss point).
+//! Strains in Voigt order xx, yy, zz, yz, xz, xy with engineering shears.
 //! Plain trilinear hexahedra lock in bending; [`hex8_plain_stiffness`] is kept as a test oracle
 //! of that locking.
 
@@ -190,6 +193,48 @@ pub fn hex8_incompatible_stiffness(
     Ok(k)
 }
 
+/// 33 × 33 element matrix: 24 nodal dofs then the 9 incompatible-mode amplitudes α.
+pub type Mat33 = SMatrix<f64, 33, 33>;
+
+/// The uncondensed incompatible-mode element, as in CalculiX's C3D8I (an 11-node element whose
+/// 3 internal nodes carry α): stiffness [[K_uu, K_uα], [K_αu, K_αα]] and consistent mass
+/// ∫ ρ N̂ᵀN̂ dV over the extended shape functions N̂ = (N_1..N_8, P_1, P_2, P_3), 2 × 2 × 2 Gauss.
+/// Keeping α as dofs with mass is a Rayleigh–Ritz enlargement of the condensed element (static
+/// condensation in dynamics is Guyan reduction), so its frequencies are lower. N/m and kg.
+pub fn hex8_incompatible_internal(
+    coords: &[[f64; 3]; 8],
+    c: &Mat6,
+    density: f64,
+    element: usize,
+) -> Result<(Mat33, Mat33), SimError> {
+    let b = blocks(coords, c, element)?;
+    let mut k = Mat33::zeros();
+    k.fixed_view_mut::<24, 24>(0, 0).copy_from(&b.kuu);
+    k.fixed_view_mut::<24, 9>(0, 24).copy_from(&b.kua);
+    k.fixed_view_mut::<9, 24>(24, 0)
+        .copy_from(&b.kua.transpose());
+    k.fixed_view_mut::<9, 9>(24, 24).copy_from(&b.kaa);
+    let mut m = Mat33::zeros();
+    for xi in gauss_points() {
+        let (n, dn) = shape(xi);
+        let det = jacobian(coords, &dn).determinant();
+        let mut ext = [0.0; 11];
+        ext[..8].copy_from_slice(&n);
+        for q in 0..3 {
+            ext[8 + q] = 1.0 - xi[q] * xi[q];
+        }
+        for a in 0..11 {
+            for bb in 0..11 {
+                let v = density * ext[a] * ext[bb] * det;
+                for comp in 0..3 {
+                    m[(3 * a + comp, 3 * bb + comp)] += v;
+                }
+            }
+        }
+    }
+    Ok((k, m))
+}
+
 /// The plain trilinear hexahedron's stiffness K_uu (locks in bending; a test oracle). N/m.
 pub fn hex8_plain_stiffness(
     coords: &[[f64; 3]; 8],
@@ -240,7 +285,11 @@ mod tests {
     fn unit_box(dx: f64, dy: f64, dz: f64) -> [[f64; 3]; 8] {
         let mut c = [[0.0; 3]; 8];
         for (a, p) in CORNERS.iter().enumerate() {
-            c[a] = [0.5 * (p[0] + 1.0) * dx, 0.5 * (p[1] + 1.0) * dy, 0.5 * (p[2] + 1.0) * dz];
+            c[a] = [
+                0.5 * (p[0] + 1.0) * dx,
+                0.5 * (p[1] + 1.0) * dy,
+                0.5 * (p[2] + 1.0) * dz,
+            ];
         }
         c
     }
@@ -275,7 +324,10 @@ mod tests {
             let mut small: Vec<f64> = ev.iter().map(|v| v.abs() / max).collect();
             small.sort_by(|a, b| a.partial_cmp(b).unwrap());
             assert!(small[5] < 1e-10, "6 zero eigenvalues expected: {small:?}");
-            assert!(small[6] > 1e-6, "only 6 zero eigenvalues expected: {small:?}");
+            assert!(
+                small[6] > 1e-6,
+                "only 6 zero eigenvalues expected: {small:?}"
+            );
             // A rigid rotation about z explicitly.
             let mut u = SVector::<f64, 24>::zeros();
             for (a, p) in coords.iter().enumerate() {
@@ -292,7 +344,11 @@ mod tests {
         // element forces equal those of the constant stress (∫ Bᵀ σ dV).
         let c = elasticity(2.0e11, 0.3);
         let coords = distorted();
-        let a = [[1e-3, 2e-4, -3e-4], [5e-4, -2e-3, 1e-4], [-4e-4, 3e-4, 1.5e-3]];
+        let a = [
+            [1e-3, 2e-4, -3e-4],
+            [5e-4, -2e-3, 1e-4],
+            [-4e-4, 3e-4, 1.5e-3],
+        ];
         let mut u = SVector::<f64, 24>::zeros();
         for (n, p) in coords.iter().enumerate() {
             for i in 0..3 {
@@ -327,7 +383,10 @@ mod tests {
         }
         assert!((sum - 2700.0 * v).abs() < 1e-9 * sum);
         let bx = hex8_mass(&unit_box(0.5, 0.25, 0.02), 1000.0);
-        let total: f64 = (0..24).flat_map(|i| (0..24).map(move |j| (i, j))).map(|(i, j)| bx[(i, j)]).sum();
+        let total: f64 = (0..24)
+            .flat_map(|i| (0..24).map(move |j| (i, j)))
+            .map(|(i, j)| bx[(i, j)])
+            .sum();
         assert!((total - 3.0 * 1000.0 * 0.5 * 0.25 * 0.02).abs() < 1e-12);
     }
 

@@ -179,7 +179,7 @@ impl Mesh {
     /// The node layers that carry the mid-plane: one layer (k = nz/2) when nz is even, the two
     /// layers bounding it (each with weight ½) when nz is odd.
     pub fn midplane_layers(&self) -> Vec<(usize, f64)> {
-        if self.nz % 2 == 0 {
+        if self.nz.is_multiple_of(2) {
             vec![(self.nz / 2, 1.0)]
         } else {
             vec![(self.nz / 2, 0.5), (self.nz / 2 + 1, 0.5)]

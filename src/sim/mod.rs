@@ -12,6 +12,7 @@ pub mod reduced;
 pub mod simulate;
 pub mod system;
 pub mod truncation;
+pub mod validate;
 
 pub use error::SimError;
 pub use system::{FeSystem, Sls, StiffnessTerm};

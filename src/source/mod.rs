@@ -111,28 +111,27 @@ pub trait Source: Send {
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
 }
 
-pub mod wav_out;
-
-pub use wav_out::{write_wav_f32, WavStreamWriter};
-mod frames;
-pub mod wav;
-
-pub use wav::{WavHeader, WavSource};
+// Implementations. Every source keeps the same error contract: all complete frames are delivered
+// before a `Truncated` or `Malformed` error (the pipeline flushes partial results), a stream
+// without a single frame is `Empty`, and a call may return fewer frames than asked (what has
+// arrived on a pipe).
 pub mod csv;
+mod frames;
+pub mod noise;
 pub mod raw;
+pub mod recording_set;
+pub mod stdin;
+pub mod synth;
+pub mod wav;
+pub mod wav_out;
 
 pub use csv::CsvSource;
 pub use raw::{RawFormat, RawSource};
-pub mod recording_set;
-
 pub use recording_set::{
     open_recording_set, write_recording_set, DecayKind, Excitation, RecordingMeta, RecordingSet,
     Sensor,
 };
-pub mod stdin;
-
 pub use stdin::{open_input, open_stream, InputOptions, OpenedInput};
-pub mod noise;
-pub mod synth;
-
 pub use synth::{synthesize, Mode, SynthSource, SynthSpec};
+pub use wav::{WavHeader, WavSource};
+pub use wav_out::{write_wav_f32, WavStreamWriter};

@@ -1,0 +1,3 @@
+//! Studies built on the analysis chain (the front-end comparison sweep).
+
+pub mod sweep;

@@ -1,0 +1,211 @@
+//! Issue 4 acceptance: the IEC octave bank on pyrato's analytic room impulse responses
+//! (`../shared/reference/pyrato_tests/`, see its README; skipped with a message when absent).
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::{decaying_sines, rel_err};
+use dampscope::decay::estimate::EstimateSettings;
+use dampscope::decay::{DecayEstimate, EvaluationRange, Flag};
+use dampscope::frontend::goyder::FilterDirection;
+use dampscope::frontend::iec_bands::{iec_bands, OctaveFraction};
+use dampscope::frontend::octave_bank::{
+    butterworth_bandpass, OctaveBankFrontEnd, OctaveBankSettings,
+};
+use dampscope::frontend::{Band, FrontEnd};
+use dampscope::pipeline::analyze_decay;
+
+fn reference(name: &str) -> Option<String> {
+    let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../shared/reference/pyrato_tests")
+        .join(name);
+    match std::fs::read_to_string(&p) {
+        Ok(s) => Some(s),
+        Err(e) => {
+            eprintln!("SKIPPED: reference file {} not readable ({e})", p.display());
+            None
+        }
+    }
+}
+
+fn numbers(line: &str) -> Vec<f64> {
+    line.split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| {
+            s.trim()
+                .parse::<f64>()
+                .expect("a number in the reference CSV")
+        })
+        .collect()
+}
+
+fn octave(
+    x: &[f64],
+    fs: f64,
+    direction: FilterDirection,
+    range: EvaluationRange,
+) -> Vec<(Band, DecayEstimate)> {
+    let (bands, _) = iec_bands(OctaveFraction::Octave, 63.0, fs).unwrap();
+    let s = OctaveBankSettings {
+        direction,
+        ..Default::default()
+    };
+    let mut fe = OctaveBankFrontEnd::new(s, fs, &bands).unwrap();
+    let settings = EstimateSettings {
+        range,
+        ..Default::default()
+    };
+    let est = analyze_decay(x, &mut fe, &settings);
+    bands.into_iter().zip(est).collect()
+}
+
+/// `analytic_rir_rigid_walls.csv`: 44.1 kHz, T60 = 1 s by construction in every band, no
+/// noise. Every octave band from 63 Hz to 8 kHz carries enough energy (the analytic RIR's
+/// direct part is broadband; peak-to-tail > 80 dB in each band), so all are checked.
+#[test]
+fn rigid_walls_rir_t20_t30_within_3_percent_in_every_octave() {
+    let Some(text) = reference("analytic_rir_rigid_walls.csv") else {
+        return;
+    };
+    let x: Vec<f64> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
+        .map(|l| l.trim().parse::<f64>().expect("one number per line"))
+        .collect();
+    assert_eq!(x.len(), 65536);
+    for direction in [FilterDirection::Reversed, FilterDirection::Forward] {
+        for range in [EvaluationRange::T20, EvaluationRange::T30] {
+            let rows = octave(&x, 44_100.0, direction, range);
+            assert_eq!(rows.len(), 8, "63 Hz … 8 kHz");
+            for (band, e) in rows {
+                let t = e.t60_s.unwrap_or(f64::NAN);
+                assert!(
+                    rel_err(t, 1.0) < 0.03,
+                    "{direction:?} {range:?} {} Hz: T = {t}, flags {:?}",
+                    band.nominal_hz,
+                    e.flags
+                );
+            }
+        }
+    }
+}
+
+/// `analytic_rir_psnr50_2D.csv`: fs 3000 Hz, T60 = 1 s and 2 s plus white noise at a broadband
+/// peak-SNR of 50 dB. Per octave band the peak-to-noise ratio is only 31–37 dB (measured with
+/// scipy on the same filters), below the 45 dB that ISO 3382 asks for T30: no honest T30 exists
+/// and the chain must say so rather than report a noise-lengthened value (≈ 20–24 s without
+/// compensation). T20 (35 dB needed) is reachable with the estimator's noise compensation in the
+/// 1 kHz octave, which holds most of the room's modes (the analytic RIR stops at 1 kHz and the
+/// 1 m³ room's modal density grows with f²); the 63–250 Hz octaves hold only a few modes and are
+/// noise-limited. (500 Hz: 1.038 s and 1.975 s at the time of writing, i.e. 3.8 % off on ch0.)
+#[test]
+fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
+    let Some(text) = reference("analytic_rir_psnr50_2D.csv") else {
+        return;
+    };
+    let rows: Vec<Vec<f64>> = text.lines().map(numbers).collect();
+    assert_eq!(rows.len(), 2);
+    for (x, t60) in rows.iter().zip([1.0, 2.0]) {
+        assert_eq!(x.len(), 16384);
+        for (band, e) in octave(x, 3000.0, FilterDirection::Reversed, EvaluationRange::T30) {
+            assert!(
+                e.has(Flag::NoiseLimited) && e.t60_s.is_none(),
+                "{} Hz: {:?} {:?}",
+                band.nominal_hz,
+                e.t60_s,
+                e.flags
+            );
+        }
+        let t20 = octave(x, 3000.0, FilterDirection::Reversed, EvaluationRange::T20);
+        let (band, e) = t20.iter().find(|(b, _)| b.nominal_hz == 1000.0).unwrap();
+        let t = e.t60_s.unwrap_or(f64::NAN);
+        assert!(
+            rel_err(t, t60) < 0.03,
+            "{} Hz T20 = {t} vs {t60}, {:?}",
+            band.nominal_hz,
+            e.flags
+        );
+        for (band, e) in t20.iter().filter(|(b, _)| b.nominal_hz <= 250.0) {
+            assert!(
+                e.has(Flag::NoiseLimited),
+                "{} Hz: {:?}",
+                band.nominal_hz,
+                e.flags
+            );
+        }
+    }
+}
+
+#[test]
+fn bandpass_response_matches_butterworth_at_the_edges() {
+    fn gain_at(sections: &[biquad::Coefficients<f64>], f: f64, fs: f64) -> f64 {
+        let w = 2.0 * std::f64::consts::PI * f / fs;
+        sections.iter().fold(1.0, |g, c| {
+            let z1 = rustfft::num_complex::Complex::from_polar(1.0, -w);
+            let z2 = z1 * z1;
+            g * ((c.b0 + z1 * c.b1 + z2 * c.b2) / (1.0 + z1 * c.a1 + z2 * c.a2)).norm()
+        })
+    }
+    // Analytic: |H| = 1 at the (pre-warped) centre, 1/√2 (−3.01 dB) at both exact edges,
+    // ≈ −(order·6 dB per octave of the prototype) far away.
+    let (lo, hi) = (707.945_784_384_137_9, 1_412.537_544_622_754);
+    for fs in [48_000.0, 3000.0] {
+        // fs = 3000 Hz: the upper edge sits near Nyquist, the pre-warped band is very wide and the
+        // real prototype pole gives two real band-pass poles; the edges must still be at −3 dB.
+        let sections = butterworth_bandpass(3, lo, hi, fs).unwrap();
+        let gain = |f: f64| gain_at(&sections, f, fs);
+        let centre_warped = fs / std::f64::consts::PI
+            * (((std::f64::consts::PI * lo / fs).tan() * (std::f64::consts::PI * hi / fs).tan())
+                .sqrt())
+            .atan();
+        assert!(
+            (gain(centre_warped) - 1.0).abs() < 1e-9,
+            "{}",
+            gain(centre_warped)
+        );
+        assert!((gain(lo) - 0.5f64.sqrt()).abs() < 1e-9, "{}", gain(lo));
+        assert!((gain(hi) - 0.5f64.sqrt()).abs() < 1e-9, "{}", gain(hi));
+        // 1.5 octaves below the lower edge: ≥ 30 dB down (48 kHz: −41 dB; 3 kHz, warped: −34 dB).
+        assert!(gain(250.0) < 0.03, "{}", gain(250.0));
+    }
+    let fs = 48_000.0;
+    assert!(gain_at(&butterworth_bandpass(3, lo, hi, fs).unwrap(), 4000.0, fs) < 0.01);
+    assert!(butterworth_bandpass(3, 0.0, 1000.0, fs).is_err());
+    assert!(butterworth_bandpass(3, 1000.0, 30_000.0, fs).is_err());
+}
+
+#[test]
+fn third_octave_reversed_is_exact_where_forward_is_biased() {
+    // METHODS §1.1 STFT table, 1/3-octave columns: 100 Hz, ζ = 3 %, T60 0.366 s (B·T60 ≈ 8.5):
+    // forward 0.370 s (+1 %), reversed 0.367 s.
+    let fs = 4000.0;
+    let x = decaying_sines(&[(100.0, 0.03, 1.0, 0.0)], fs, 3.0);
+    let (bands, _) = iec_bands(OctaveFraction::Third, 100.0, fs).unwrap();
+    let band = bands[0];
+    let truth = 1.0994 / (100.0 * 0.03);
+    let run = |direction| {
+        let s = OctaveBankSettings {
+            direction,
+            frame_period_ms: 1.0,
+            ..Default::default()
+        };
+        let mut fe = OctaveBankFrontEnd::new(s, fs, &[band]).unwrap();
+        let settings = EstimateSettings {
+            range: EvaluationRange::T20,
+            ..Default::default()
+        };
+        assert_eq!(fe.name(), "octave");
+        analyze_decay(&x, &mut fe, &settings)
+            .remove(0)
+            .t60_s
+            .unwrap()
+    };
+    let rev = run(FilterDirection::Reversed);
+    let fwd = run(FilterDirection::Forward);
+    assert!(rel_err(rev, truth) < 0.005, "reversed {rev} vs {truth}");
+    assert!(
+        fwd / truth - 1.0 > 0.005,
+        "forward {fwd} should be biased upward vs {truth}"
+    );
+}
