@@ -254,9 +254,8 @@ fn lu_solve_sequential(a: &mut Mat<c64>, b: MatRef<'_, c64>) -> Vec<c64> {
     let mut perm = vec![0usize; m];
     let mut perm_inv = vec![0usize; m];
     let mut mem = MemBuffer::new(
-        factor::lu_in_place_scratch::<usize, c64>(m, m, Par::Seq, Default::default()).or(
-            solve::solve_in_place_scratch::<usize, c64>(m, 1, Par::Seq),
-        ),
+        factor::lu_in_place_scratch::<usize, c64>(m, m, Par::Seq, Default::default())
+            .or(solve::solve_in_place_scratch::<usize, c64>(m, 1, Par::Seq)),
     );
     let (_, p) = factor::lu_in_place(
         a.as_mut(),
