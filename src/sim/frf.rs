@@ -12,10 +12,10 @@
 //! computed once and reused for every frequency; only the numeric factorisation is repeated.
 
 use faer::c64;
-use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::solvers::{Lu, SymbolicLu};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, Triplet};
-use faer::Mat;
+use faer::{Conj, Mat, Par};
 
 use super::system::{FeSystem, SensorWeights};
 
@@ -263,9 +263,11 @@ impl<'a> DirectSolver<'a> {
             .map(|t| entry_map(&pattern, &t.matrix))
             .collect();
         let symbolic =
-            SymbolicLu::try_new(pattern.as_ref()).map_err(|e| FrfError::Factorisation {
-                what: "symbolic LU of the dynamic stiffness".into(),
-                message: format!("{e:?}"),
+            factorize_symbolic_lu(pattern.as_ref(), Default::default()).map_err(|e| {
+                FrfError::Factorisation {
+                    what: "symbolic LU of the dynamic stiffness".into(),
+                    message: format!("{e:?}"),
+                }
             })?;
         Ok(Self {
             sys,
@@ -299,14 +301,30 @@ impl<'a> DirectSolver<'a> {
         let omega = 2.0 * std::f64::consts::PI * f_hz;
         let vals = self.dynamic_stiffness_values(omega);
         let a = SparseColMatRef::new(self.pattern.as_ref(), &vals);
-        let lu = Lu::try_new_with_symbolic(self.symbolic.clone(), a).map_err(|e| {
-            FrfError::Factorisation {
-                what: format!("dynamic stiffness at {f_hz} Hz"),
-                message: format!("{e:?}"),
-            }
-        })?;
-        let rhs = Mat::<c64>::from_fn(self.sys.n_free, 1, |i, _| c64::new(self.sys.force[i], 0.0));
-        let u = lu.solve(rhs);
+        // Single-threaded numeric LU: the callers already run one frequency per thread.
+        let fail = |message: String| FrfError::Factorisation {
+            what: format!("dynamic stiffness at {f_hz} Hz"),
+            message,
+        };
+        let req = self
+            .symbolic
+            .factorize_numeric_lu_scratch::<c64>(Par::Seq, Default::default())
+            .or(self.symbolic.solve_in_place_scratch::<c64>(1, Par::Seq));
+        let mut mem = MemBuffer::try_new(req).map_err(|e| fail(format!("{e:?}")))?;
+        let mut numeric = NumericLu::<usize, c64>::new();
+        let lu = self
+            .symbolic
+            .factorize_numeric_lu(
+                &mut numeric,
+                a,
+                Par::Seq,
+                MemStack::new(&mut mem),
+                Default::default(),
+            )
+            .map_err(|e| fail(format!("{e:?}")))?;
+        let mut u =
+            Mat::<c64>::from_fn(self.sys.n_free, 1, |i, _| c64::new(self.sys.force[i], 0.0));
+        lu.solve_in_place_with_conj(Conj::No, u.as_mut(), Par::Seq, MemStack::new(&mut mem));
         let u: Vec<c64> = u.col(0).iter().copied().collect();
         if u.iter().any(|z| !z.re.is_finite() || !z.im.is_finite()) {
             return Err(FrfError::Factorisation {
