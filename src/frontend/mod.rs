@@ -103,3 +103,25 @@ pub(crate) fn check_bank_settings(
     }
     Ok(())
 }
+
+/// Resolution of a filter bank with frames `hop` samples apart: its time resolution is about
+/// 1/B and its frequency resolution B for the narrowest band B.
+pub(crate) fn bank_resolution(bands: &[Band], hop: usize, sample_rate_hz: f64) -> Resolution {
+    let b_min = bands
+        .iter()
+        .map(|b| b.width_hz())
+        .fold(f64::INFINITY, f64::min);
+    Resolution {
+        frame_period_s: hop as f64 / sample_rate_hz,
+        time_resolution_s: 1.0 / b_min,
+        frequency_resolution_hz: b_min,
+    }
+}
+
+/// Appends `samples` to a decay buffer of at most `max_samples`; returns true when some did not
+/// fit (the buffering banks then flag the decay as overflowed instead of growing without bound).
+pub(crate) fn buffer_bounded(buffer: &mut Vec<f64>, max_samples: usize, samples: &[f64]) -> bool {
+    let room = max_samples.saturating_sub(buffer.len());
+    buffer.extend_from_slice(&samples[..samples.len().min(room)]);
+    samples.len() > room
+}

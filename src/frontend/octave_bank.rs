@@ -234,16 +234,7 @@ impl FrontEnd for OctaveBankFrontEnd {
     }
 
     fn resolution(&self) -> Resolution {
-        let b_min = self
-            .bands
-            .iter()
-            .map(|b| b.width_hz())
-            .fold(f64::INFINITY, f64::min);
-        Resolution {
-            frame_period_s: self.hop as f64 / self.sample_rate_hz,
-            time_resolution_s: 1.0 / b_min,
-            frequency_resolution_hz: b_min,
-        }
+        super::bank_resolution(&self.bands, self.hop, self.sample_rate_hz)
     }
 
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
@@ -260,12 +251,8 @@ impl FrontEnd for OctaveBankFrontEnd {
                 }
             }
             FilterDirection::Reversed => {
-                let room = self.max_samples.saturating_sub(self.buffer.len());
-                if samples.len() > room {
-                    self.overflowed = true;
-                }
-                self.buffer
-                    .extend_from_slice(&samples[..samples.len().min(room)]);
+                self.overflowed |=
+                    super::buffer_bounded(&mut self.buffer, self.max_samples, samples);
             }
         }
     }
