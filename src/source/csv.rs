@@ -367,15 +367,7 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
         }
         self.frames_read += got as u64;
         if got == 0 {
-            if let Some(e) = self.pending.take() {
-                return Err(e);
-            }
-            if self.frames_read == 0 {
-                return Err(SourceError::Empty {
-                    what: self.what.clone(),
-                });
-            }
-            return Ok(false);
+            return super::end_of_input(&mut self.pending, self.frames_read, &self.what);
         }
         Ok(true)
     }

@@ -235,15 +235,7 @@ impl<R: Read> FrameReader<R> {
         self.have = partial;
         self.frames_read += whole as u64;
         if whole == 0 {
-            if let Some(e) = self.pending.take() {
-                return Err(e);
-            }
-            if self.frames_read == 0 {
-                return Err(SourceError::Empty {
-                    what: self.what.clone(),
-                });
-            }
-            return Ok(false);
+            return super::end_of_input(&mut self.pending, self.frames_read, &self.what);
         }
         Ok(true)
     }

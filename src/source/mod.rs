@@ -136,3 +136,21 @@ pub use stdin::{open_input, open_stream, InputOptions, OpenedInput};
 pub use synth::{synthesize, Mode, SynthSource, SynthSpec};
 pub use wav::{WavHeader, WavSource};
 pub use wav_out::{write_wav_f32, WavStreamWriter};
+
+/// What a source says when a read finds no more frames: the error it held back until every
+/// complete frame was delivered, `Empty` when there never was a frame, or the normal end.
+pub(crate) fn end_of_input(
+    pending: &mut Option<SourceError>,
+    frames_read: u64,
+    what: &str,
+) -> Result<bool, SourceError> {
+    if let Some(e) = pending.take() {
+        return Err(e);
+    }
+    if frames_read == 0 {
+        return Err(SourceError::Empty {
+            what: what.to_string(),
+        });
+    }
+    Ok(false)
+}
