@@ -50,6 +50,19 @@ fn cell(csv_text: &str, name: &str) -> String {
     rows[0].get(name).cloned().unwrap_or_default()
 }
 
+/// Analyses `input` from standard input in the 55 Hz band; D_corrected must be 2.5 % ± 2 %.
+fn assert_stdin_gives_2_5_percent(input: &[u8]) {
+    let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], input);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let d: f64 = cell(&text, "damping_ratio_corrected").parse().unwrap();
+    assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
+}
+
 fn assert_clean(out: &Output) {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(!err.contains("panicked"), "panic: {err}");
@@ -59,15 +72,7 @@ fn assert_clean(out: &Output) {
 fn wav_piped_from_synth_is_analysed() {
     let wav = synth("wav");
     assert_eq!(&wav[..4], b"RIFF");
-    let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], &wav);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
-    let d: f64 = cell(&text, "damping_ratio_corrected").parse().unwrap();
-    assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
+    assert_stdin_gives_2_5_percent(&wav);
 }
 
 #[test]
@@ -104,15 +109,7 @@ fn raw_f32_piped_from_synth_is_analysed() {
 #[test]
 fn csv_input_is_analysed() {
     let csv = synth("csv");
-    let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], &csv);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8(out.stdout).unwrap();
-    let d: f64 = cell(&text, "damping_ratio_corrected").parse().unwrap();
-    assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
+    assert_stdin_gives_2_5_percent(&csv);
 }
 
 #[test]

@@ -86,7 +86,13 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
 
 /// Peak resident memory of this process, KiB (Linux `/proc/self/status` VmHWM).
 pub fn peak_memory_kib() -> Option<u64> {
-    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    peak_memory_kib_of("self")
+}
+
+/// Peak resident memory of process `pid` ("self" or a number), KiB (Linux VmHWM); `None`
+/// where /proc is not available.
+pub fn peak_memory_kib_of(pid: &str) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
     status
         .lines()
         .find(|l| l.starts_with("VmHWM:"))?
