@@ -242,12 +242,14 @@ fn matches_a_plain_per_band_oracle() {
 }
 
 /// Plain per-sample oracle of the reversed Goyder bank: exact complex exponential (no
-/// oscillator recursion), biquads from `butterworth_lowpass` in direct form I, block means of
-/// 2|z|², the transient zone dropped. At 44.1 kHz the 1 ms hop (44 samples) does not divide the
-/// kernel's 512-sample resynchronisation span, which exercises the span bookkeeping.
+/// oscillator recursion); low-pass sections designed here from the analog Butterworth poles
+/// mapped by the bilinear transform (independently of the library's design code), all-pole,
+/// each normalised to unit DC gain at its input; block means of 2|z|², the transient zone
+/// dropped. At 44.1 kHz the 1 ms hop (44 samples) does not divide the kernel's 512-sample
+/// resynchronisation span, which exercises the span bookkeeping; 11 bands fill one vector
+/// group and part of a second.
 #[test]
 fn reversed_frames_match_a_naive_oracle_at_44_1_khz() {
-    use dampscope::frontend::goyder::butterworth_lowpass;
     use rustfft::num_complex::Complex;
     let fs = 44_100.0;
     let x = decaying_sines(
@@ -255,45 +257,66 @@ fn reversed_frames_match_a_naive_oracle_at_44_1_khz() {
         fs,
         0.6,
     );
-    let bands: Vec<Band> = (0..5)
-        .map(|k| Band::new(950.0 + 50.0 * k as f64, 1010.0 + 50.0 * k as f64).unwrap())
+    let bands: Vec<Band> = (0..11)
+        .map(|k| Band::new(950.0 + 30.0 * k as f64, 1010.0 + 30.0 * k as f64).unwrap())
         .collect();
     let mut fe = GoyderFrontEnd::new(GoyderSettings::default(), fs, &bands).unwrap();
     let (hop, cut) = (fe.hop_samples(), fe.cut_samples());
     assert_eq!(hop, 44);
-    let mut got: Vec<Vec<f64>> = Vec::new();
+    let mut got: Vec<(Vec<f64>, Vec<f64>)> = Vec::new();
     fe.process(&x, &mut |_: Frame<'_>| {});
-    fe.finish(&mut |f: Frame<'_>| got.push(f.energy.to_vec()));
+    fe.finish(&mut |f: Frame<'_>| got.push((f.energy.to_vec(), f.frequency_hz.to_vec())));
     let n = x.len();
     let n_frames = (n - cut) / hop;
     assert_eq!(got.len(), n_frames);
+    let order = 4;
     for (b, band) in bands.iter().enumerate() {
         let f_h = 0.5 * (band.lo_hz + band.hi_hz);
-        let sections = butterworth_lowpass(4, 0.5 * band.width_hz(), fs);
+        let k = (std::f64::consts::PI * 0.5 * band.width_hz() / fs).tan();
+        // Upper-half-plane analog poles (normalised by 2fs) and their bilinear images.
+        let poles: Vec<Complex<f64>> = (0..order / 2)
+            .map(|i| {
+                let theta = std::f64::consts::PI * (0.5 + (2 * i + 1) as f64 / (2 * order) as f64);
+                let s = Complex::from_polar(k, theta);
+                (1.0 + s) / (1.0 - s)
+            })
+            .collect();
         let mut z = vec![Complex::new(0.0, 0.0); n];
-        let mut st = vec![[Complex::new(0.0, 0.0); 4]; sections.len()];
+        let mut st = vec![[Complex::new(0.0, 0.0); 2]; poles.len()];
         for m in 0..n {
             let phase = -2.0 * std::f64::consts::PI * f_h * m as f64 / fs;
             let mut u = Complex::from_polar(x[n - 1 - m], phase);
-            for (c, s) in sections.iter().zip(&mut st) {
-                // Direct form I: s = [x1, x2, y1, y2].
-                let y = u * c[0] + s[0] * c[1] + s[1] * c[2] - s[2] * c[3] - s[3] * c[4];
-                *s = [u, s[0], y, s[2]];
+            for (p, s) in poles.iter().zip(&mut st) {
+                // (1 − p z⁻¹)(1 − p̄ z⁻¹) = 1 − 2Re(p) z⁻¹ + |p|² z⁻², scaled to unit DC gain.
+                let (c1, c2) = (2.0 * p.re, -p.norm_sqr());
+                let y = u * (1.0 - c1 - c2) + s[0] * c1 + s[1] * c2;
+                *s = [y, s[0]];
                 u = y;
             }
             z[n - 1 - m] = u;
         }
         for k in 0..n_frames {
-            let want: f64 = z[k * hop..(k + 1) * hop]
-                .iter()
-                .map(|v| 2.0 * v.norm_sqr())
-                .sum::<f64>()
-                / hop as f64;
-            let g = got[k][b];
+            let block = &z[k * hop..(k + 1) * hop];
+            let want: f64 = block.iter().map(|v| 2.0 * v.norm_sqr()).sum::<f64>() / hop as f64;
+            let g = got[k].0[b];
             assert!(
-                (g - want).abs() <= 1e-7 * want.abs() + 1e-15,
+                (g - want).abs() <= 1e-10 * want.abs() + 1e-15,
                 "band {b} frame {k}: {g} vs {want}"
             );
+            // Frequency: f_h + arg Σ z[m]·conj(z[m−1]) in processing (reversed) order, i.e.
+            // z[i]·conj(z[i+1]) in time order, the block's last sample paired with the next one.
+            let lag: Complex<f64> = z[k * hop..(k + 1) * hop + 1]
+                .windows(2)
+                .map(|w| w[0] * w[1].conj())
+                .sum();
+            if lag.norm() > 1e-9 * want {
+                let want_f = f_h + lag.arg() * fs / (2.0 * std::f64::consts::PI);
+                let got_f = got[k].1[b];
+                assert!(
+                    (got_f - want_f).abs() < 1e-6,
+                    "band {b} frame {k}: f {got_f} vs {want_f}"
+                );
+            }
         }
     }
 }

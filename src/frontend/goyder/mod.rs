@@ -2,8 +2,9 @@
 //!
 //! Per band (METHODS.md §1.1 reconstruction): the decay x[n], n = 0…N−1, is reversed, multiplied
 //! by e^{−j2π f_h m/fs} (f_h = arithmetic band middle), low-pass filtered by a Butterworth of
-//! order [`GoyderSettings::order`] with cut-off B/2 (B = band width; as cascaded biquads with real
-//! coefficients acting on the real and imaginary parts), and reversed back. The result z[n] is
+//! order [`GoyderSettings::order`] with cut-off B/2 (B = band width; as cascaded all-pole
+//! sections with real coefficients acting on the real and imaginary parts, see [`kernel`]), and
+//! reversed back. The result z[n] is
 //! the band's analytic signal shifted to 0 Hz. A growing exponential e^{(σ+jω)t} passes the
 //! filter with its slope unchanged (only the gain |H(σ+jω)| changes), while the filter's own
 //! start-up transient lands at the *end* of the original record; the last
@@ -18,8 +19,13 @@
 //! Reversal needs the whole decay: [`FrontEnd::process`] only buffers (at most
 //! [`GoyderSettings::max_decay_s`] seconds; later samples are ignored and
 //! [`GoyderFrontEnd::overflowed`] turns true) and [`FrontEnd::finish`] filters and emits every
-//! frame. The filtering runs all bands interleaved (structure of arrays, bands in the inner
-//! loop) so that the compiler vectorises across bands.
+//! frame. The filtering runs all bands interleaved (structure of arrays, 8 bands per vector)
+//! so that the compiler vectorises across bands, with AVX-512 or AVX2 + FMA chosen at run time.
+
+mod kernel;
+
+pub use kernel::butterworth_allpole;
+use kernel::{Kernel, RESYNC_SAMPLES};
 
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
 use crate::error::{Error, Result};
@@ -62,216 +68,6 @@ impl Default for GoyderSettings {
             cut_factor: 3.0,
             max_decay_s: 60.0,
             direction: FilterDirection::Reversed,
-        }
-    }
-}
-
-/// Samples between exact resynchronisations of the heterodyne oscillators.
-const RESYNC_SAMPLES: usize = 512;
-
-/// Bands per group: the kernel works on groups of `LANES` bands held in fixed-size arrays, so
-/// that the compiler vectorises across the bands of a group (one `&mut` per group: no aliasing
-/// doubts). The last group is padded with inert bands (zero coefficients).
-const LANES: usize = 4;
-/// Most biquad sections per band (order 8).
-const MAX_SECTIONS: usize = 4;
-
-type Lanes = [f64; LANES];
-
-/// Coefficients and states of `LANES` bands: oscillator, low-pass sections (b0, a1, a2 with
-/// b1 = 2·b0 and b2 = b0 for a Butterworth low-pass; transposed direct form II states of the
-/// real and imaginary paths), previous output and the frame sums.
-#[derive(Clone, Copy, Debug, Default)]
-struct Group {
-    rot_re: Lanes,
-    rot_im: Lanes,
-    osc_re: Lanes,
-    osc_im: Lanes,
-    b0: [Lanes; MAX_SECTIONS],
-    a1: [Lanes; MAX_SECTIONS],
-    a2: [Lanes; MAX_SECTIONS],
-    s1r: [Lanes; MAX_SECTIONS],
-    s2r: [Lanes; MAX_SECTIONS],
-    s1i: [Lanes; MAX_SECTIONS],
-    s2i: [Lanes; MAX_SECTIONS],
-    pr: Lanes,
-    pi: Lanes,
-    ae: Lanes,
-    apr: Lanes,
-    api: Lanes,
-}
-
-impl Group {
-    #[inline(always)]
-    fn step<const NS: usize, const ACC: bool>(&mut self, x: f64) {
-        for l in 0..LANES {
-            let (c, s) = (self.osc_re[l], self.osc_im[l]);
-            let (mut ur, mut ui) = (x * c, x * s);
-            self.osc_re[l] = c * self.rot_re[l] - s * self.rot_im[l];
-            self.osc_im[l] = c * self.rot_im[l] + s * self.rot_re[l];
-            for k in 0..NS {
-                let (tr, ti) = (self.b0[k][l] * ur, self.b0[k][l] * ui);
-                let yr = tr + self.s1r[k][l];
-                let yi = ti + self.s1i[k][l];
-                self.s1r[k][l] = 2.0 * tr - self.a1[k][l] * yr + self.s2r[k][l];
-                self.s1i[k][l] = 2.0 * ti - self.a1[k][l] * yi + self.s2i[k][l];
-                self.s2r[k][l] = tr - self.a2[k][l] * yr;
-                self.s2i[k][l] = ti - self.a2[k][l] * yi;
-                ur = yr;
-                ui = yi;
-            }
-            if ACC {
-                self.ae[l] += ur * ur + ui * ui;
-                self.apr[l] += ur * self.pr[l] + ui * self.pi[l];
-                self.api[l] += ui * self.pr[l] - ur * self.pi[l];
-            }
-            self.pr[l] = ur;
-            self.pi[l] = ui;
-        }
-    }
-}
-
-/// Butterworth low-pass of even `order` and cut-off `fc_hz` as biquads, each `[b0, b1, b2, a1, a2]`
-/// (bilinear transform with pre-warping; unit gain at 0 Hz).
-pub fn butterworth_lowpass(order: usize, fc_hz: f64, fs_hz: f64) -> Vec<[f64; 5]> {
-    let k = (std::f64::consts::PI * fc_hz / fs_hz).tan();
-    (0..order / 2)
-        .map(|i| {
-            let q = 1.0
-                / (2.0 * (std::f64::consts::PI * (2 * i + 1) as f64 / (2 * order) as f64).cos());
-            let norm = 1.0 / (1.0 + k / q + k * k);
-            let b0 = k * k * norm;
-            [
-                b0,
-                2.0 * b0,
-                b0,
-                2.0 * (k * k - 1.0) * norm,
-                (1.0 - k / q + k * k) * norm,
-            ]
-        })
-        .collect()
-}
-
-/// The interleaved filter state of all bands.
-#[derive(Clone, Debug)]
-struct Kernel {
-    freq_hz: Vec<f64>,
-    sections: usize,
-    groups: Vec<Group>,
-}
-
-impl Kernel {
-    fn new(bands: &[Band], order: usize, fs_hz: f64) -> Self {
-        let nb = bands.len();
-        let mut groups = vec![Group::default(); nb.div_ceil(LANES)];
-        let mut freq_hz = Vec::with_capacity(nb);
-        for (b, band) in bands.iter().enumerate() {
-            let (g, l) = (&mut groups[b / LANES], b % LANES);
-            let f_h = 0.5 * (band.lo_hz + band.hi_hz);
-            // Bands beyond Nyquist are flagged by the pipeline; keep the design well-defined.
-            let fc = (0.5 * band.width_hz()).min(0.45 * fs_hz);
-            for (k, c) in butterworth_lowpass(order, fc, fs_hz).iter().enumerate() {
-                g.b0[k][l] = c[0];
-                g.a1[k][l] = c[3];
-                g.a2[k][l] = c[4];
-            }
-            let w = -2.0 * std::f64::consts::PI * f_h / fs_hz;
-            g.rot_re[l] = w.cos();
-            g.rot_im[l] = w.sin();
-            freq_hz.push(f_h);
-        }
-        Kernel {
-            freq_hz,
-            sections: order / 2,
-            groups,
-        }
-    }
-
-    fn clear(&mut self) {
-        for g in &mut self.groups {
-            for v in [&mut g.s1r, &mut g.s2r, &mut g.s1i, &mut g.s2i] {
-                *v = [[0.0; LANES]; MAX_SECTIONS];
-            }
-            for v in [&mut g.pr, &mut g.pi, &mut g.ae, &mut g.apr, &mut g.api] {
-                *v = [0.0; LANES];
-            }
-        }
-    }
-
-    /// Sets the oscillators exactly to e^{−j2π f_h m / fs}.
-    fn resync(&mut self, m: usize, fs_hz: f64) {
-        for (b, f) in self.freq_hz.iter().enumerate() {
-            let cycles = (f * m as f64 / fs_hz).fract();
-            let (s, c) = (-2.0 * std::f64::consts::PI * cycles).sin_cos();
-            let g = &mut self.groups[b / LANES];
-            g.osc_re[b % LANES] = c;
-            g.osc_im[b % LANES] = s;
-        }
-    }
-
-    /// Filters `xs` (in reverse order when `reversed`) through every band; `accumulate` adds
-    /// the outputs to the frame sums. Uses AVX2 when the CPU has it (checked at run time).
-    fn filter_span(&mut self, xs: &[f64], reversed: bool, accumulate: bool) {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2 (checked just above); the function has no other
-                // requirement.
-                unsafe { self.filter_span_avx2(xs, reversed, accumulate) };
-                return;
-            }
-        }
-        self.filter_span_generic(xs, reversed, accumulate);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    unsafe fn filter_span_avx2(&mut self, xs: &[f64], reversed: bool, accumulate: bool) {
-        self.filter_span_generic(xs, reversed, accumulate);
-    }
-
-    #[inline(always)]
-    fn filter_span_generic(&mut self, xs: &[f64], reversed: bool, accumulate: bool) {
-        match (self.sections, accumulate) {
-            (1, true) => self.span_n::<1, true>(xs, reversed),
-            (1, false) => self.span_n::<1, false>(xs, reversed),
-            (2, true) => self.span_n::<2, true>(xs, reversed),
-            (2, false) => self.span_n::<2, false>(xs, reversed),
-            (3, true) => self.span_n::<3, true>(xs, reversed),
-            (3, false) => self.span_n::<3, false>(xs, reversed),
-            (_, true) => self.span_n::<4, true>(xs, reversed),
-            (_, false) => self.span_n::<4, false>(xs, reversed),
-        }
-    }
-
-    #[inline(always)]
-    fn span_n<const NS: usize, const ACC: bool>(&mut self, xs: &[f64], reversed: bool) {
-        let mut one = |x: f64| {
-            for g in &mut self.groups {
-                g.step::<NS, ACC>(x);
-            }
-        };
-        if reversed {
-            xs.iter().rev().for_each(|&x| one(x));
-        } else {
-            xs.iter().for_each(|&x| one(x));
-        }
-    }
-
-    /// Moves the frame sums into `energy`/`freq` (one frame of `hop` samples) and clears them.
-    fn take_frame(&mut self, hop: usize, fs_hz: f64, energy: &mut [f64], freq: &mut [f64]) {
-        for (b, f_h) in self.freq_hz.iter().enumerate() {
-            let (g, l) = (&mut self.groups[b / LANES], b % LANES);
-            energy[b] = 2.0 * g.ae[l] / hop as f64;
-            let (re, im) = (g.apr[l], g.api[l]);
-            freq[b] = if re == 0.0 && im == 0.0 {
-                f64::NAN
-            } else {
-                f_h + im.atan2(re) * fs_hz / (2.0 * std::f64::consts::PI)
-            };
-            g.ae[l] = 0.0;
-            g.apr[l] = 0.0;
-            g.api[l] = 0.0;
         }
     }
 }
