@@ -1,6 +1,7 @@
 //! Throughput of the Goyder-style filter bank (reversed filtering of a buffered decay):
 //! criterion's elements/s is samples per second per channel; times the band count it is
-//! band-samples per second (the target: ≥ 1e9 per core).
+//! band-samples per second (the aim: ≥ 1e9 per core). `DAMPSCOPE_SIMD=avx2` or `generic` caps
+//! the instruction set the kernel picks, to measure the fallbacks.
 //!
 //! `cargo bench --bench filterbank`
 
