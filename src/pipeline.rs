@@ -83,6 +83,7 @@ pub fn analyze_decay(
     let mut trackers = BandTrackers::new(front_end, settings, f64::INFINITY);
     front_end.process(samples, &mut |f: Frame<'_>| trackers.push(f));
     front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
+    let cut_short = front_end.decay_cut_short();
     trackers
         .estimators
         .iter()
@@ -90,6 +91,9 @@ pub fn analyze_decay(
         .map(|(e, band)| {
             let mut est = e.provisional();
             flag_off_band(&mut est, band);
+            if cut_short {
+                est.flags.push(Flag::DecayTooLong);
+            }
             est
         })
         .collect()
@@ -250,6 +254,7 @@ impl ChannelAnalyzer {
             self.state = State::Searching;
             return;
         }
+        let cut_short = self.front_end.decay_cut_short();
         let estimates: Vec<DecayEstimate> = self
             .trackers
             .estimators
@@ -266,6 +271,9 @@ impl ChannelAnalyzer {
                 };
                 if truncated {
                     est.flags.push(Flag::InputTruncated);
+                }
+                if cut_short {
+                    est.flags.push(Flag::DecayTooLong);
                 }
                 est
             })

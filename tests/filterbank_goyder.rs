@@ -350,3 +350,56 @@ fn edge_cases_do_not_panic() {
     };
     assert!(GoyderFrontEnd::new(s, fs, &[band]).is_err());
 }
+
+/// A decay longer than the bank's buffer: the rows say so (`decay_too_long`) instead of silently
+/// reporting the first part as the whole, in one-shot and in streaming analysis; the octave
+/// bank, which shares the buffer, behaves alike.
+#[test]
+fn a_decay_longer_than_the_buffer_is_flagged() {
+    use dampscope::frontend::octave_bank::{OctaveBankFrontEnd, OctaveBankSettings};
+    use dampscope::pipeline::{AnalysisConfig, ChannelAnalyzer};
+    let fs = 1000.0;
+    let band = Band::new(90.0, 110.0).unwrap();
+    // T60 2.2 s: 55 dB down at 2 s (enough for T30), 82 dB at 3 s (before the 100 dB end).
+    let x = decaying_sines(&[(100.0, 0.005, 1.0, 0.0)], fs, 3.0);
+    let banks = |max_decay_s: f64| -> Vec<Box<dyn FrontEnd>> {
+        let g = GoyderSettings {
+            max_decay_s,
+            ..Default::default()
+        };
+        let o = OctaveBankSettings {
+            max_decay_s,
+            ..Default::default()
+        };
+        vec![
+            Box::new(GoyderFrontEnd::new(g, fs, &[band]).unwrap()),
+            Box::new(OctaveBankFrontEnd::new(o, fs, &[band]).unwrap()),
+        ]
+    };
+    for (max_decay_s, flagged) in [(2.0, true), (4.0, false)] {
+        for mut fe in banks(max_decay_s) {
+            let e = analyze_decay(&x, &mut *fe, &EstimateSettings::default()).remove(0);
+            assert_eq!(e.has(Flag::DecayTooLong), flagged, "{}: {e:?}", fe.name());
+            assert!(
+                e.t60_s.is_some(),
+                "{}: the first 2 s still give a number",
+                fe.name()
+            );
+            // Streaming: the same decay through the channel analyzer in 100-sample pieces.
+            let name = fe.name();
+            let mut an = ChannelAnalyzer::new("c".into(), fs, fe, AnalysisConfig::default());
+            let mut rows = Vec::new();
+            for piece in x.chunks(100) {
+                an.push(piece, &mut rows);
+            }
+            an.finish(false, &mut rows);
+            assert_eq!(rows.len(), 1, "{name}");
+            let e = &rows[0].estimate;
+            assert_eq!(
+                e.has(Flag::DecayTooLong),
+                flagged,
+                "{name} streaming: {e:?}"
+            );
+        }
+    }
+}

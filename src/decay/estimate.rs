@@ -41,6 +41,9 @@ pub enum Flag {
     NoiseCompensated,
     /// The band lies (partly) above the Nyquist frequency or outside what the front end resolves.
     BandOutOfRange,
+    /// The decay outlasted the buffering front end's limit (`max_decay_s`): only its first
+    /// part was analysed.
+    DecayTooLong,
 }
 
 impl Flag {
@@ -59,6 +62,7 @@ impl Flag {
             Flag::BandOutOfRange => "band_out_of_range",
             Flag::NoiseCompensated => "noise_compensated",
             Flag::OffBandDominant => "off_band_dominant",
+            Flag::DecayTooLong => "decay_too_long",
         }
     }
 }

@@ -68,6 +68,13 @@ pub trait FrontEnd: Send {
     /// Forgets the current decay so that the next call to `process` starts a new one.
     fn reset(&mut self);
 
+    /// True when the current decay outlasted what the front end buffers, so that only its
+    /// first part was analysed (the rows then carry `decay_too_long`). Streaming front ends
+    /// never are.
+    fn decay_cut_short(&self) -> bool {
+        false
+    }
+
     /// A short name for tables and logs (`stft`, `goyder`, `octave`).
     fn name(&self) -> &'static str;
 }

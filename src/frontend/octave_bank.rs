@@ -300,6 +300,10 @@ impl FrontEnd for OctaveBankFrontEnd {
         self.clear_filters();
     }
 
+    fn decay_cut_short(&self) -> bool {
+        self.overflowed
+    }
+
     fn name(&self) -> &'static str {
         "octave"
     }

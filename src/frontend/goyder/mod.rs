@@ -245,6 +245,10 @@ impl FrontEnd for GoyderFrontEnd {
         self.kernel.clear();
     }
 
+    fn decay_cut_short(&self) -> bool {
+        self.overflowed
+    }
+
     fn name(&self) -> &'static str {
         "goyder"
     }
