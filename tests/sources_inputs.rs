@@ -157,6 +157,27 @@ fn open_input_by_path() {
             ..
         })
     ));
+    // --fs must agree with a WAV header or a recording set (4 kHz here), by path and on stdin.
+    let fs_at = |hz| InputOptions {
+        fs_hz: Some(hz),
+        ..Default::default()
+    };
+    for path in [wav.as_str(), EXAMPLE] {
+        assert!(open_input(path, &fs_at(4000.0)).is_ok(), "{path}");
+        match open_input(path, &fs_at(48000.0)) {
+            Err(SourceError::SampleRateConflict {
+                header_hz,
+                option_hz,
+                ..
+            }) => assert_eq!((header_hz, option_hz), (4000.0, 48000.0)),
+            other => panic!("{path}: expected a rate conflict, got {:?}", other.err()),
+        }
+    }
+    let bytes = std::fs::read(&wav).unwrap();
+    assert!(matches!(
+        open_stream(Cursor::new(bytes), "stdin", &fs_at(44100.0)),
+        Err(SourceError::SampleRateConflict { .. })
+    ));
     assert!(matches!(
         open_input("/nonexistent/x.wav", &InputOptions::default()),
         Err(SourceError::Io { .. })

@@ -54,6 +54,16 @@ pub enum SourceError {
         /// Channels found.
         got: usize,
     },
+    /// A sample rate given as an option disagrees with the one the file's header states.
+    #[error("{what}: the header says {header_hz} Hz but --fs says {option_hz} Hz (drop --fs: a WAV or recording set carries its own rate)")]
+    SampleRateConflict {
+        /// What was being read.
+        what: String,
+        /// Rate from the header, Hz.
+        header_hz: f64,
+        /// Rate from the option, Hz.
+        option_hz: f64,
+    },
     /// The input holds no samples at all.
     #[error("{what}: no samples")]
     Empty {

@@ -25,7 +25,8 @@ pub struct InputOptions {
     /// Raw interleaved little-endian samples of this type (no detection).
     pub raw: Option<RawFormat>,
     /// Sample rate in Hz: required for raw input and for CSV without a time column or `# fs=`
-    /// comment; wins over a CSV's own rate; a WAV header's rate always wins.
+    /// comment; wins over a CSV's own rate; must agree with a WAV header's or recording set's
+    /// rate (an error otherwise, rather than a silent choice).
     pub fs_hz: Option<f64>,
     /// Channel count: required for raw input; otherwise checked against the input.
     pub channels: Option<usize>,
@@ -95,6 +96,26 @@ fn check_channels(what: &str, source: &dyn Source, opts: &InputOptions) -> Resul
     }
 }
 
+/// Errors when `opts.fs_hz` disagrees with the rate of a source that carries its own (WAV,
+/// recording set).
+fn check_header_rate(
+    what: &str,
+    source: &dyn Source,
+    opts: &InputOptions,
+) -> Result<(), SourceError> {
+    let header_hz = source.info().sample_rate_hz;
+    match opts.fs_hz {
+        Some(option_hz) if (option_hz - header_hz).abs() > 1e-9 * header_hz => {
+            Err(SourceError::SampleRateConflict {
+                what: what.to_string(),
+                header_hz,
+                option_hz,
+            })
+        }
+        _ => Ok(()),
+    }
+}
+
 fn raw_source<R: Read + Send + 'static>(
     reader: R,
     what: &str,
@@ -149,7 +170,9 @@ pub fn open_stream<R: Read + Send + 'static>(
     }
     let stream = BufReader::new(Cursor::new(head).chain(reader));
     let source: Box<dyn Source> = if is_wav {
-        Box::new(WavSource::new(stream, what)?)
+        let wav = WavSource::new(stream, what)?;
+        check_header_rate(what, &wav, opts)?;
+        Box::new(wav)
     } else {
         Box::new(CsvSource::new(stream, what, opts.fs_hz)?)
     };
@@ -168,6 +191,7 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
     if p.is_dir() {
         let set = open_recording_set(p)?;
         check_channels(path, set.source.as_ref(), opts)?;
+        check_header_rate(path, set.source.as_ref(), opts)?;
         return Ok(OpenedInput {
             source: set.source,
             sensors: Some(set.sensors),
@@ -183,7 +207,11 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     let source: Box<dyn Source> = match (opts.raw, ext.as_deref()) {
-        (None, Some("wav")) => Box::new(WavSource::new(BufReader::new(file), path)?),
+        (None, Some("wav")) => {
+            let wav = WavSource::new(BufReader::new(file), path)?;
+            check_header_rate(path, &wav, opts)?;
+            Box::new(wav)
+        }
         (None, Some("csv")) => Box::new(CsvSource::new(BufReader::new(file), path, opts.fs_hz)?),
         _ => open_stream(file, path, opts)?,
     };
