@@ -91,14 +91,22 @@ fn rigid_walls_rir_t20_t30_within_3_percent_in_every_octave() {
     }
 }
 
-/// `analytic_rir_psnr50_2D.csv`: fs 3000 Hz, T60 = 1 s and 2 s plus white noise at a broadband
-/// peak-SNR of 50 dB. Per octave band the peak-to-noise ratio is only 31–37 dB (measured with
-/// scipy on the same filters), below the 45 dB that ISO 3382 asks for T30: no honest T30 exists
-/// and the chain must say so rather than report a noise-lengthened value (≈ 20–24 s without
-/// compensation). T20 (35 dB needed) is reachable with the estimator's noise compensation in the
-/// 1 kHz octave, which holds most of the room's modes (the analytic RIR stops at 1 kHz and the
-/// 1 m³ room's modal density grows with f²); the 63–250 Hz octaves hold only a few modes and are
-/// noise-limited. (500 Hz: 1.038 s and 1.975 s at the time of writing, i.e. 3.8 % off on ch0.)
+/// `analytic_rir_psnr50_2D.csv`: fs 3000 Hz, T60 = 1 s and 2 s plus white noise. In spite of the
+/// file's name the noise has σ = 0.00999 (Lundeby's noise energy 9.99e-5 in the reference, and
+/// the residual against the regenerated noise-free RIR, `scripts/pyrato_octave_psnr.py`), i.e.
+/// a broadband peak-SNR of 40 dB. Per octave band the peak-to-noise ratio is only 31–37 dB,
+/// below the 45 dB that ISO 3382 asks for T30: no honest T30 exists and the chain must say so
+/// rather than report a noise-lengthened value (≈ 20–24 s without compensation). T20 (35 dB
+/// needed) is reachable with the estimator's noise compensation in the 1 kHz octave, which holds
+/// most of the room's modes (the analytic RIR stops at 1 kHz and the 1 m³ room's modal density
+/// grows with f²); the 63–250 Hz octaves hold only a few modes and are noise-limited.
+///
+/// 500 Hz passes the ISO check but is 3.8 % / 1.5 % off (1.038 s, 1.969 s): the noise
+/// realisation, not the bank — on the noise-free RIR every octave is within 0.1 % — and pyrato
+/// 1.1.0 itself (Chu + Lundeby on pyfar's octave filters, same script) gives 1.027 s / 1.977 s
+/// there, 1.080 s at 125 Hz and 0.970 s at 250 Hz. So 500 Hz is only pinned within 5 %.
+/// With `noise_margin_db` 5 the 125 and 250 Hz octaves get numbers, flagged, up to 11 % off:
+/// why the ISO margin is the default.
 #[test]
 fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
     let Some(text) = reference("analytic_rir_psnr50_2D.csv") else {
@@ -133,6 +141,25 @@ fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
                 band.nominal_hz,
                 e.flags
             );
+        }
+        let (_, e) = t20.iter().find(|(b, _)| b.nominal_hz == 500.0).unwrap();
+        let t = e.t60_s.unwrap_or(f64::NAN);
+        assert!(rel_err(t, t60) < 0.05, "500 Hz T20 = {t} vs {t60}");
+        // A smaller noise margin trades the refusal for flagged, biased numbers.
+        let (bands, _) = iec_bands(OctaveFraction::Octave, 63.0, 3000.0).unwrap();
+        let mut fe =
+            OctaveBankFrontEnd::new(OctaveBankSettings::default(), 3000.0, &bands).unwrap();
+        let relaxed = EstimateSettings {
+            range: EvaluationRange::T20,
+            noise_margin_db: 5.0,
+            ..Default::default()
+        };
+        for (band, e) in bands.iter().zip(analyze_decay(x, &mut fe, &relaxed)) {
+            if band.nominal_hz == 125.0 || band.nominal_hz == 250.0 {
+                let t = e.t60_s.expect("a number with a 5 dB margin");
+                assert!(rel_err(t, t60) < 0.15, "{} Hz: {t}", band.nominal_hz);
+                assert!(e.has(Flag::NoiseCompensated) && e.has(Flag::TruncationBias));
+            }
         }
     }
 }

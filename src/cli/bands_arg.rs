@@ -45,6 +45,10 @@ pub struct BandArgs {
     /// Fewest frames in the evaluation range for a number to be reported.
     #[arg(long, default_value_t = 3)]
     pub min_points: usize,
+    /// How far (dB) a noise floor must lie below the range's lower limit for a number to be
+    /// reported: 10 per ISO 3382-1; 0 reports noise-compensated values the way pyrato does.
+    #[arg(long, default_value_t = 10.0)]
+    pub noise_margin_db: f64,
 }
 
 impl Default for BandArgs {
@@ -59,6 +63,7 @@ impl Default for BandArgs {
             zero_pad: 1,
             range: "t30".into(),
             min_points: 3,
+            noise_margin_db: 10.0,
         }
     }
 }
@@ -87,9 +92,16 @@ impl BandArgs {
                 format!("expected >= 2, got {}", self.min_points),
             ));
         }
+        if !(self.noise_margin_db.is_finite() && self.noise_margin_db >= 0.0) {
+            return Err(Error::setting(
+                "--noise-margin-db",
+                format!("expected a finite value >= 0, got {}", self.noise_margin_db),
+            ));
+        }
         Ok(EstimateSettings {
             range,
             min_points: self.min_points,
+            noise_margin_db: self.noise_margin_db,
             ..Default::default()
         })
     }

@@ -76,6 +76,11 @@ pub struct EstimateSettings {
     pub min_points: usize,
     /// |C| = |100 (T30/T20 − 1)| above this, in %, raises [`Flag::NonlinearDecay`] (10 by default).
     pub curvature_limit_pct: f64,
+    /// A noise floor less than this many dB below the range's lower limit raises
+    /// [`Flag::NoiseLimited`] and withholds the number (10 by default, the ISO 3382-1 rule:
+    /// 35 dB of peak-to-noise for T20, 45 dB for T30). Lower it to get noise-compensated
+    /// values closer to the floor, at the risk of their bias.
+    pub noise_margin_db: f64,
 }
 
 impl Default for EstimateSettings {
@@ -84,6 +89,7 @@ impl Default for EstimateSettings {
             range: EvaluationRange::T30,
             min_points: 3,
             curvature_limit_pct: 10.0,
+            noise_margin_db: 10.0,
         }
     }
 }
@@ -145,11 +151,12 @@ fn fit_range(
     times_s: &[f64],
     range: EvaluationRange,
     noise: Option<f64>,
-    min_points: usize,
+    settings: &EstimateSettings,
 ) -> Result<RangeFit, Flag> {
+    let min_points = settings.min_points;
     let (upper, lower) = range.limits_db();
     if let Some(pnr_db) = noise {
-        if pnr_db < -lower + 10.0 {
+        if pnr_db < -lower + settings.noise_margin_db {
             return Err(Flag::NoiseLimited);
         }
     }
@@ -261,7 +268,7 @@ pub fn estimate_from_curve(
     let times_s: Vec<f64> = (0..curve.len())
         .map(|k| k as f64 * frame_period_s)
         .collect();
-    let fit_of = |r| fit_range(&levels_db, &times_s, r, noise, settings.min_points);
+    let fit_of = |r| fit_range(&levels_db, &times_s, r, noise, settings);
     let t_of = |r| fit_of(r).ok().and_then(|f| f.fit.t60_s());
 
     let mut est = DecayEstimate {
