@@ -217,7 +217,7 @@ impl<const L: usize> Group<L> {
 /// Which instruction set the kernel runs with (detected once).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Isa {
-    /// Portable code, no fused multiply-add.
+    /// Portable code (fused multiply-add on aarch64 only, where it is always present).
     Generic,
     /// x86-64 AVX2 with FMA.
     #[cfg(target_arch = "x86_64")]
@@ -362,7 +362,10 @@ impl Kernel {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `Isa::detect` found AVX2 and FMA on this CPU.
             Isa::Avx2Fma => unsafe { self.span_avx2(xs, reversed, accumulate) },
-            Isa::Generic => self.span::<false>(xs, reversed, accumulate),
+            // aarch64 always has fused multiply-add; x86-64 without the feature would call libm.
+            Isa::Generic => {
+                self.span::<{ cfg!(target_arch = "aarch64") }>(xs, reversed, accumulate)
+            }
         }
     }
 
