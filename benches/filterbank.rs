@@ -36,7 +36,7 @@ fn goyder(c: &mut Criterion) {
     let mut g = c.benchmark_group("goyder");
     g.throughput(Throughput::Elements(x.len() as u64));
     g.sample_size(10);
-    for nb in [10usize, 30, 100] {
+    for nb in [1usize, 4, 10, 30, 100] {
         let bands: Vec<Band> = (0..nb)
             .map(|k| Band::new(100.0 + 20.0 * k as f64, 120.0 + 20.0 * k as f64).unwrap())
             .collect();
