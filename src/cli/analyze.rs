@@ -63,15 +63,10 @@ pub fn make_front_end(
     })
 }
 
-/// Options of `dampscope analyze`.
-#[derive(Debug, clap::Args)]
-pub struct AnalyzeArgs {
-    /// A .wav or .csv file, a recording-set directory, or `-` for standard input
-    /// (WAV or CSV detected; raw samples with --raw).
-    pub input: String,
-    /// How to read raw or headerless input.
-    #[command(flatten)]
-    pub input_format: InputFormatArgs,
+/// The analysis options shared by `analyze` and `map`: front end, bands, evaluation range and
+/// how decays are found in the stream.
+#[derive(Debug, Clone, clap::Args)]
+pub struct PipelineArgs {
     /// Front end.
     #[arg(long, value_enum, default_value_t = FrontEndChoice::Stft)]
     pub front_end: FrontEndChoice,
@@ -81,12 +76,6 @@ pub struct AnalyzeArgs {
     /// Bands, windows and evaluation range.
     #[command(flatten)]
     pub bands: BandArgs,
-    /// Output table format.
-    #[arg(long, value_enum, default_value_t = TableFormat::Csv)]
-    pub format: TableFormat,
-    /// Write the table here instead of standard output.
-    #[arg(long, value_name = "FILE")]
-    pub out: Option<std::path::PathBuf>,
     /// Decay onset: first sample within this many dB of the peak.
     #[arg(long, default_value_t = 20.0)]
     pub onset_level_db: f64,
@@ -99,6 +88,26 @@ pub struct AnalyzeArgs {
     /// After a decay ends, a sample within this many dB of its peak starts the next one.
     #[arg(long, default_value_t = 20.0)]
     pub retrigger_db: f64,
+}
+
+/// Options of `dampscope analyze`.
+#[derive(Debug, clap::Args)]
+pub struct AnalyzeArgs {
+    /// A .wav or .csv file, a recording-set directory, or `-` for standard input
+    /// (WAV or CSV detected; raw samples with --raw).
+    pub input: String,
+    /// How to read raw or headerless input.
+    #[command(flatten)]
+    pub input_format: InputFormatArgs,
+    /// Front end, bands, range, decay detection.
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// Output table format.
+    #[arg(long, value_enum, default_value_t = TableFormat::Csv)]
+    pub format: TableFormat,
+    /// Write the table here instead of standard output.
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<std::path::PathBuf>,
 }
 
 /// Builds the front-end factory for the chosen front end and bands.
@@ -120,15 +129,24 @@ pub fn front_end_factory(
 /// The most samples per channel read whole for `--bands auto` (2^27: 45 min at 48 kHz).
 pub const MAX_WHOLE_SAMPLES: usize = 1 << 27;
 
-/// Runs `analyze`; returns the exit code (0, or 3 when part of the input was damaged).
-pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
-    let opts = args.input_format.options();
-    let mut opened = open_input(&args.input, &opts)?;
-    let info = opened.source.info().clone();
+/// Everything `pipeline::run` needs, checked before any thread starts.
+pub struct PreparedRun {
+    /// The samples (read whole for `--bands auto`).
+    pub source: Box<dyn Source>,
+    /// One front end per channel.
+    pub factory: FrontEndFactory,
+    /// Decay detection and estimate settings.
+    pub config: AnalysisConfig,
+}
+
+/// Resolves bands (reading the input whole for `--bands auto`), front end and settings;
+/// prints band warnings to stderr.
+pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Result<PreparedRun> {
+    let info = source.info().clone();
     let fs = info.sample_rate_hz;
     let (source, bands, warnings): (Box<dyn Source>, _, _) = if args.bands.needs_samples() {
         // Mode-centred bands need the spectrum first: read the input whole (bounded).
-        let data = read_all(opened.source.as_mut(), MAX_WHOLE_SAMPLES)?;
+        let data = read_all(source.as_mut(), MAX_WHOLE_SAMPLES)?;
         let first = data.first().map(Vec::as_slice).unwrap_or(&[]);
         let from = find_onset(first, args.onset_level_db).unwrap_or(0);
         let (bands, warnings) = args.bands.resolve_with(fs, Some(&first[from..]))?;
@@ -139,7 +157,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
         )
     } else {
         let (bands, warnings) = args.bands.resolve_with(fs, None)?;
-        (opened.source, bands, warnings)
+        (source, bands, warnings)
     };
     for w in warnings {
         eprintln!("dampscope: warning: {w}");
@@ -165,15 +183,16 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
         retrigger_db: args.retrigger_db,
         ..Default::default()
     };
-    let out: Box<dyn Write> = match &args.out {
-        Some(p) => Box::new(BufWriter::new(
-            File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
-        None => Box::new(std::io::stdout().lock()),
-    };
-    let mut writer = TableWriter::new(out, args.format);
-    writer.write_header()?;
-    let summary = pipeline::run(source, &factory, &config, |rows| writer.write_rows(rows))?;
+    Ok(PreparedRun {
+        source,
+        factory,
+        config,
+    })
+}
+
+/// Warns about damaged input or non-finite channels; returns the exit code (0, or 3 when
+/// part of the input was damaged).
+pub fn exit_code_of(summary: &pipeline::RunSummary) -> i32 {
     let mut code = EXIT_OK;
     if let Some(e) = &summary.input_error {
         eprintln!(
@@ -188,5 +207,23 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
         );
         code = EXIT_PARTIAL;
     }
-    Ok(code)
+    code
+}
+
+/// Runs `analyze`; returns the exit code (0, or 3 when part of the input was damaged).
+pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
+    let opened = open_input(&args.input, &args.input_format.options())?;
+    let run = prepare(&args.pipeline, opened.source)?;
+    let out: Box<dyn Write> = match &args.out {
+        Some(p) => Box::new(BufWriter::new(
+            File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
+        )),
+        None => Box::new(std::io::stdout().lock()),
+    };
+    let mut writer = TableWriter::new(out, args.format);
+    writer.write_header()?;
+    let summary = pipeline::run(run.source, &run.factory, &run.config, |rows| {
+        writer.write_rows(rows)
+    })?;
+    Ok(exit_code_of(&summary))
 }

@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod bands_arg;
 pub mod compare;
 pub mod demo;
+pub mod map;
 pub mod modes;
 pub mod simulate;
 pub mod synth;
@@ -40,6 +41,8 @@ pub enum Command {
     Demo(demo::DemoArgs),
     /// Run STFT, Goyder bank and octave bank side by side on one input, or the built-in sweep.
     Compare(compare::CompareArgs),
+    /// Local damping maps over the sensors and the global damping per band (recording set).
+    Map(map::MapArgs),
     /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
     Modes(modes::ModesArgs),
     /// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
@@ -65,6 +68,7 @@ pub fn main_exit_code() -> i32 {
         Command::Simulate(args) => simulate::run(args).map(|_| EXIT_OK),
         Command::Modes(args) => modes::run(args).map(|_| EXIT_OK),
         Command::Compare(args) => compare::run(args).map(|_| EXIT_OK),
+        Command::Map(args) => map::run(args),
     };
     match result {
         Ok(code) => code,

@@ -2,6 +2,10 @@
 //! (`assets/DejaVuSans.ttf`, Bitstream Vera licence in `assets/DejaVuSans.LICENSE`), so no
 //! system fonts are needed.
 
+mod map;
+
+pub use map::damping_map;
+
 use std::path::Path;
 use std::sync::Once;
 
@@ -52,7 +56,7 @@ fn label_at(v: f64, values: &[f64], scale: f64, unit: &str) -> String {
     }
 }
 
-fn plot_err<E: std::fmt::Display>(e: E) -> Error {
+pub(crate) fn plot_err<E: std::fmt::Display>(e: E) -> Error {
     Error::Output(format!("plot: {e}"))
 }
 
