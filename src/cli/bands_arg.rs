@@ -39,7 +39,7 @@ pub struct BandArgs {
     /// STFT zero-padding factor (FFT length = window × factor).
     #[arg(long, default_value_t = 1)]
     pub zero_pad: usize,
-    /// Evaluation range: edt, t20, t30 or drop:N (−5…−(5+N) dB).
+    /// Evaluation range: edt, t20, t30, drop:N (−5…−(5+N) dB) or from:A:B (−A…−B dB).
     #[arg(long, default_value = "t30")]
     pub range: String,
     /// Fewest frames in the evaluation range for a number to be reported.
