@@ -1,5 +1,6 @@
 //! Studies built on the analysis chain: local damping maps and the global equivalent damping
-//! per band, and the front-end comparison sweep.
+//! per band, FRF re-synthesis from it, and the front-end comparison sweep.
 
 pub mod maps;
+pub mod resynthesis;
 pub mod sweep;

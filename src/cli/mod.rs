@@ -7,6 +7,7 @@ pub mod compare;
 pub mod demo;
 pub mod map;
 pub mod modes;
+pub mod resynth;
 pub mod simulate;
 pub mod synth;
 
@@ -43,6 +44,8 @@ pub enum Command {
     Compare(compare::CompareArgs),
     /// Local damping maps over the sensors and the global damping per band (recording set).
     Map(map::MapArgs),
+    /// Re-synthesise the model's FRF from the global damping per band and compare (eq. 4.8).
+    Resynth(resynth::ResynthArgs),
     /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
     Modes(modes::ModesArgs),
     /// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
@@ -69,6 +72,7 @@ pub fn main_exit_code() -> i32 {
         Command::Modes(args) => modes::run(args).map(|_| EXIT_OK),
         Command::Compare(args) => compare::run(args).map(|_| EXIT_OK),
         Command::Map(args) => map::run(args),
+        Command::Resynth(args) => resynth::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

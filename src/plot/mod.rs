@@ -3,8 +3,10 @@
 //! system fonts are needed.
 
 mod map;
+mod resynth;
 
 pub use map::damping_map;
+pub use resynth::resynthesis_figure;
 
 use std::path::Path;
 use std::sync::Once;

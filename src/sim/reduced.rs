@@ -228,6 +228,15 @@ fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError> {
     }
 }
 
+/// The static displacement K₀⁻¹ f over the free dofs (K₀ + σM for a free structure, see
+/// `static_solver`): with the modes' own static part removed, the residual flexibility of the
+/// truncated modes.
+pub fn static_displacement(sys: &FeSystem) -> Result<Vec<f64>, FrfError> {
+    let llt = static_solver(sys)?;
+    let f = Mat::from_fn(sys.n_free, 1, |i, _| sys.force[i]);
+    Ok(llt.solve(f.as_ref()).col(0).iter().copied().collect())
+}
+
 /// A copy of a stiffness term without its matrix (a 0 × 0 placeholder): only its frequency
 /// factor s_r(ω) is needed once the matrix has been projected.
 fn factor_only(t: &super::system::StiffnessTerm) -> Result<super::system::StiffnessTerm, FrfError> {
