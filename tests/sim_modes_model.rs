@@ -285,3 +285,19 @@ fn edge_springs_integrate_to_k_times_length_and_stiff_springs_act_like_pins() {
         assert!((a - b).abs() / b < 0.005, "sprung {a} vs pinned {b}");
     }
 }
+
+#[test]
+fn every_example_model_loads_and_assembles() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().and_then(|e| e.to_str()) != Some("toml") {
+            continue;
+        }
+        let model = Model::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        assemble(&model).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        n += 1;
+    }
+    assert!(n >= 4, "{n} example models");
+}
