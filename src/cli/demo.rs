@@ -215,11 +215,7 @@ fn plate_cases() -> anyhow::Result<()> {
     );
     for (name, keep, report) in [
         ("mode 7 only (eq. 2.7)", vec![7], "2.6 (Fig. 3.6)"),
-        (
-            "modes 7 + 8",
-            vec![7, 8],
-            "2.7 (Fig. 3.7)",
-        ),
+        ("modes 7 + 8", vec![7, 8], "2.7 (Fig. 3.7)"),
     ] {
         let sim = simulate(
             &model,
