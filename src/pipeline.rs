@@ -143,6 +143,9 @@ impl BandTrackers {
         }
         let mut all_low = true;
         for (k, est) in self.estimators.iter_mut().enumerate() {
+            if frame.active.is_some_and(|a| !a[k]) {
+                continue;
+            }
             let e = frame.energy[k];
             est.push_frame(e, frame.frequency_hz[k]);
             self.peak[k] = self.peak[k].max(e);

@@ -202,19 +202,33 @@ fn matches_a_plain_per_band_oracle() {
         Band::new(280.0, 320.0).unwrap(),
         Band::new(150.0, 250.0).unwrap(),
     ];
+    // Per frame: the energies and which bands are active.
     let collect = |bs: &[Band]| {
         let mut fe = GoyderFrontEnd::new(GoyderSettings::default(), fs, bs).unwrap();
-        let mut out: Vec<Vec<f64>> = Vec::new();
+        let mut out: Vec<(Vec<f64>, Vec<bool>)> = Vec::new();
         fe.process(&x, &mut |_: Frame<'_>| {});
-        fe.finish(&mut |f: Frame<'_>| out.push(f.energy.to_vec()));
+        fe.finish(&mut |f: Frame<'_>| {
+            let active = f
+                .active
+                .map_or(vec![true; f.energy.len()], <[bool]>::to_vec);
+            out.push((f.energy.to_vec(), active))
+        });
         out
     };
     let all = collect(&bands);
+    // Frames run to the widest band's cut (100 Hz: 30 ms); the 40 Hz bands end 45 ms earlier.
+    assert_eq!(all.len(), (3000 - 60) / 2);
     for (b, band) in bands.iter().enumerate() {
         let single = collect(&[*band]);
-        // The cut follows the narrowest band of the set, so compare the common frames.
-        for (k, frame) in all.iter().enumerate() {
-            let (a, s) = (frame[b], single[k][0]);
+        assert!(
+            single.iter().all(|(_, a)| a[0]),
+            "a lone band is always active"
+        );
+        // Band b is active exactly in the frames the band alone produces, with equal values.
+        let active: Vec<usize> = (0..all.len()).filter(|&k| all[k].1[b]).collect();
+        assert_eq!(active, (0..single.len()).collect::<Vec<_>>(), "band {b}");
+        for k in active {
+            let (a, s) = (all[k].0[b], single[k].0[0]);
             assert!(
                 (a - s).abs() <= 1e-12 * s.abs().max(1e-300),
                 "band {b} frame {k}: {a} vs {s}"
@@ -401,5 +415,42 @@ fn a_decay_longer_than_the_buffer_is_flagged() {
                 "{name} streaming: {e:?}"
             );
         }
+    }
+}
+
+/// Found on the plate with `--bands model`: modes 7 and 8 are 0.8 Hz apart, so their bands are
+/// 0.8 Hz wide and their filter transient (3/B = 3.75 s) covered the whole 4 s impulse
+/// response. The cut used to follow the narrowest band for every band, and every band of the
+/// plate came out `no_energy`. Now each band has its own cut.
+#[test]
+fn one_narrow_band_does_not_cut_the_others() {
+    let fs = 2000.0;
+    let x = decaying_sines(
+        &[
+            (100.0, 0.01, 1.0, 0.0),
+            (300.0, 0.002, 1.0, 0.0),
+            (300.8, 0.002, 1.0, 0.0),
+        ],
+        fs,
+        3.0,
+    );
+    let bands = [
+        Band::new(90.0, 110.0).unwrap(),
+        Band::new(299.6, 300.4).unwrap(),
+        Band::new(300.4, 301.2).unwrap(),
+    ];
+    let est = goyder(
+        &x,
+        fs,
+        &bands,
+        GoyderSettings::default(),
+        EvaluationRange::T20,
+    );
+    let d = est[0]
+        .damping_ratio
+        .expect("the wide band keeps its frames");
+    assert!(rel_err(d, 0.01) < 0.02, "{d} {:?}", est[0].flags);
+    for e in &est[1..] {
+        assert!(e.damping_ratio.is_none(), "no frames left: {e:?}");
     }
 }

@@ -36,6 +36,10 @@ pub struct Frame<'a> {
     pub energy: &'a [f64],
     /// Dominant frequency in the band during this frame, in Hz; `NaN` when unknown.
     pub frequency_hz: &'a [f64],
+    /// Which bands this frame holds (`None`: all). A filter bank's narrow bands end earlier
+    /// than its wide ones (their start-up transient occupies more of the record's end); their
+    /// entries past that point are not part of the decay and must be skipped.
+    pub active: Option<&'a [bool]>,
 }
 
 /// Receives frames from a front end as they are completed.

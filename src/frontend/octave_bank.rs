@@ -224,6 +224,7 @@ impl OctaveBankFrontEnd {
         sink.frame(Frame {
             energy: &self.energy,
             frequency_hz: &self.freq,
+            active: None,
         });
     }
 }

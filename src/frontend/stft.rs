@@ -184,6 +184,7 @@ impl StftFrontEnd {
         sink.frame(Frame {
             energy: &self.energy,
             frequency_hz: &self.frequency_hz,
+            active: None,
         });
     }
 }

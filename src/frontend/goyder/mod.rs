@@ -7,8 +7,10 @@
 //! reversed back. The result z[n] is
 //! the band's analytic signal shifted to 0 Hz. A growing exponential e^{(σ+jω)t} passes the
 //! filter with its slope unchanged (only the gain |H(σ+jω)| changes), while the filter's own
-//! start-up transient lands at the *end* of the original record; the last
-//! `cut_factor / B_min` seconds (B_min = narrowest band) are therefore dropped for all bands.
+//! start-up transient lands at the *end* of the original record; the last `cut_factor / B`
+//! seconds of each band (B its width) are therefore dropped: frames run to the widest band's
+//! cut, and each narrower band's frames past its own cut are marked inactive
+//! ([`Frame::active`]), so that one narrow band (two close modes) does not shorten the others.
 //!
 //! Frames: consecutive blocks of `hop = round(frame_period_ms · fs / 1000)` samples from the
 //! onset; frame energy = block mean of 2|z|² (the mean square of the band signal), frame
@@ -50,7 +52,7 @@ pub struct GoyderSettings {
     /// Frame period in milliseconds (1 by default: ≥ 20 frames per T60 down to T60 = 20 ms,
     /// i.e. D = 5 % up to 1.1 kHz; use less for faster decays).
     pub frame_period_ms: f64,
-    /// Seconds dropped at the end of the decay, times the narrowest band width B_min
+    /// Seconds dropped at the end of the decay, times each band's width B
     /// (3 by default: the filter transient has fallen by ≳ 30 dB relative to the signal there).
     /// Not applied in [`FilterDirection::Forward`].
     pub cut_factor: f64,
@@ -78,7 +80,7 @@ pub struct GoyderFrontEnd {
     settings: GoyderSettings,
     sample_rate_hz: f64,
     hop: usize,
-    cut_samples: usize,
+    band_cut_samples: Vec<usize>,
     max_samples: usize,
     buffer: Vec<f64>,
     overflowed: bool,
@@ -111,23 +113,21 @@ impl GoyderFrontEnd {
         let hop = (settings.frame_period_ms * 1e-3 * sample_rate_hz)
             .round()
             .max(1.0) as usize;
-        let b_min = bands
+        let band_cut_samples = bands
             .iter()
-            .map(|b| b.width_hz())
-            .fold(f64::INFINITY, f64::min);
-        let cut_samples = match settings.direction {
-            FilterDirection::Forward => 0,
-            FilterDirection::Reversed if b_min.is_finite() => {
-                (settings.cut_factor / b_min * sample_rate_hz).ceil() as usize
-            }
-            FilterDirection::Reversed => 0,
-        };
+            .map(|b| match settings.direction {
+                FilterDirection::Forward => 0,
+                FilterDirection::Reversed => {
+                    (settings.cut_factor / b.width_hz() * sample_rate_hz).ceil() as usize
+                }
+            })
+            .collect();
         Ok(GoyderFrontEnd {
             bands: bands.to_vec(),
             settings,
             sample_rate_hz,
             hop,
-            cut_samples,
+            band_cut_samples,
             max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
             buffer: Vec::new(),
             overflowed: false,
@@ -140,9 +140,15 @@ impl GoyderFrontEnd {
         self.overflowed
     }
 
-    /// Samples dropped at the end of each decay (the filter transient zone), per band set.
+    /// Samples dropped at the end of each decay for the widest band (its filter transient
+    /// zone): the frames end there. Narrower bands end earlier, see [`Self::band_cut_samples`].
     pub fn cut_samples(&self) -> usize {
-        self.cut_samples
+        self.band_cut_samples.iter().copied().min().unwrap_or(0)
+    }
+
+    /// Samples dropped at the end of each decay, per band (`cut_factor` / band width).
+    pub fn band_cut_samples(&self) -> &[usize] {
+        &self.band_cut_samples
     }
 
     /// Samples per frame.
@@ -171,7 +177,7 @@ impl FrontEnd for GoyderFrontEnd {
 
     fn finish(&mut self, sink: &mut dyn FrameSink) {
         let n_total = self.buffer.len();
-        let keep = n_total.saturating_sub(self.cut_samples);
+        let keep = n_total.saturating_sub(self.cut_samples());
         let hop = self.hop;
         let n_frames = keep / hop;
         let nb = self.bands.len();
@@ -230,10 +236,21 @@ impl FrontEnd for GoyderFrontEnd {
                 }
             }
         }
+        // Each band holds the frames before its own transient zone.
+        let band_frames: Vec<usize> = self
+            .band_cut_samples
+            .iter()
+            .map(|c| n_total.saturating_sub(*c) / hop)
+            .collect();
+        let mut active = vec![true; nb];
         for k in 0..n_frames {
+            for (a, nf) in active.iter_mut().zip(&band_frames) {
+                *a = k < *nf;
+            }
             sink.frame(Frame {
                 energy: &energy[k * nb..(k + 1) * nb],
                 frequency_hz: &freq[k * nb..(k + 1) * nb],
+                active: (!active.iter().all(|a| *a)).then_some(active.as_slice()),
             });
         }
         self.buffer.clear();
