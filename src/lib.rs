@@ -19,6 +19,7 @@
 pub mod analysis;
 pub mod cli;
 pub mod decay;
+pub mod diagnose;
 pub mod error;
 pub mod frontend;
 pub mod output;
