@@ -36,3 +36,25 @@ fn demo_runs_and_reproduces_the_report() {
     assert!((m78 - 2.7).abs() < 0.05, "modes 7 + 8: {m78}");
     assert!(!out.contains("NaN"), "{out}");
 }
+
+/// Found with `dampscope map … | head -2`: a closed standard output made the next print
+/// panic (exit 101 with a backtrace). The binary now ends quietly on SIGPIPE like any filter.
+#[cfg(unix)]
+#[test]
+fn closed_pipe_ends_quietly_not_with_a_panic() {
+    use std::io::Read;
+    use std::process::Stdio;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
+        .arg("demo")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 16];
+    child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+    // The read end is dropped here: the demo's later prints hit a closed pipe.
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_ne!(out.status.code(), Some(101), "{stderr}");
+}

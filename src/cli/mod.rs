@@ -5,6 +5,7 @@ pub mod analyze;
 pub mod bands_arg;
 pub mod compare;
 pub mod demo;
+pub mod diagnose;
 pub mod map;
 pub mod modes;
 pub mod resynth;
@@ -46,6 +47,8 @@ pub enum Command {
     Map(map::MapArgs),
     /// Re-synthesise the model's FRF from the global damping per band and compare (eq. 4.8).
     Resynth(resynth::ResynthArgs),
+    /// Locate where the model's damping differs from the recordings, update it, show the fit.
+    Diagnose(diagnose::DiagnoseArgs),
     /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
     Modes(modes::ModesArgs),
     /// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
@@ -73,6 +76,7 @@ pub fn main_exit_code() -> i32 {
         Command::Compare(args) => compare::run(args).map(|_| EXIT_OK),
         Command::Map(args) => map::run(args),
         Command::Resynth(args) => resynth::run(args).map(|_| EXIT_OK),
+        Command::Diagnose(args) => diagnose::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

@@ -146,10 +146,16 @@ pub fn cell_energy_fractions(
             energy[(i, t)] = e;
         }
     }
-    // Region 0 is the plate outside every patch; regions 1..=cells are the cells.
+    // Cell r is the region named "patch r" (an empty plate region may have no term).
+    let column: Vec<Option<usize>> = (0..cells.len())
+        .map(|r| {
+            let name = format!("patch {r}");
+            sys.stiffness_terms.iter().position(|t| t.name == name)
+        })
+        .collect();
     Ok(Mat::from_fn(n_modes, cells.len(), |i, r| {
         let total: f64 = (0..energy.ncols()).map(|t| energy[(i, t)]).sum();
-        energy[(i, r + 1)] / total
+        column[r].map_or(0.0, |t| energy[(i, t)] / total)
     }))
 }
 
