@@ -67,9 +67,9 @@ pub fn nnls(a: &Mat<f64>, b: &[f64]) -> Vec<f64> {
                 x[j] += alpha * (z[k] - x[j]);
             }
             passive.retain(|&j| x[j] > 1e-15);
-            for j in 0..n {
+            for (j, xj) in x.iter_mut().enumerate() {
                 if !passive.contains(&j) {
-                    x[j] = 0.0;
+                    *xj = 0.0;
                 }
             }
         }
