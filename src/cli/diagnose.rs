@@ -13,6 +13,7 @@ use anyhow::{bail, Context};
 use super::analyze::{make_front_end, FrontEndChoice};
 use super::bands_arg::BandArgs;
 use super::compare::DirectionArg;
+use super::write_csv;
 use crate::diagnose::{
     cell_energy_fractions, cell_grid, fit_hypotheses, per_mode_damping, updated_model, Cell,
     Hypothesis, ModeDamping,
@@ -294,19 +295,16 @@ fn write_outputs(
         d_updated: Option<f64>,
         n_recorded: usize,
     }
-    let path = out.join("modes.csv");
-    let mut w = csv::Writer::from_path(&path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
-    for k in 0..bands.len() {
-        w.serialize(Row {
+    write_csv(
+        &out.join("modes.csv"),
+        (0..bands.len()).map(|k| Row {
             mode_hz: bands[k].center_hz,
             d_recorded: recorded[k].median_d,
             d_model: simulated[k].median_d,
             d_updated: after[k].median_d,
             n_recorded: recorded[k].n,
-        })?;
-    }
-    w.flush()?;
+        }),
+    )?;
     #[derive(serde::Serialize)]
     struct FitRow {
         hypothesis: String,
@@ -314,18 +312,18 @@ fn write_outputs(
         n_params: usize,
         bic: f64,
     }
-    let path = out.join("hypotheses.csv");
-    let mut w = csv::Writer::from_path(&path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
-    for f in fits {
-        w.serialize(FitRow {
-            hypothesis: serde_json::to_string(&f.hypothesis)?,
-            chi2: f.chi2,
-            n_params: f.n_params,
-            bic: f.bic,
-        })?;
-    }
-    w.flush()?;
+    let fit_rows: Vec<FitRow> = fits
+        .iter()
+        .map(|f| -> anyhow::Result<FitRow> {
+            Ok(FitRow {
+                hypothesis: serde_json::to_string(&f.hypothesis)?,
+                chi2: f.chi2,
+                n_params: f.n_params,
+                bic: f.bic,
+            })
+        })
+        .collect::<anyhow::Result<_>>()?;
+    write_csv(&out.join("hypotheses.csv"), fit_rows)?;
     let toml = toml::to_string(updated).context("cannot write the updated model as TOML")?;
     std::fs::write(out.join("updated.toml"), toml)
         .with_context(|| format!("cannot write {}", out.join("updated.toml").display()))?;

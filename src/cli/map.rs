@@ -8,12 +8,13 @@
 
 use std::fs::File;
 use std::io::BufWriter;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 
 use super::analyze::{exit_code_of, prepare, PipelineArgs};
 use super::bands_arg::InputFormatArgs;
+use super::write_csv;
 use crate::analysis::maps::{band_maps, BandMap, GlobalDamping, MapError, SubsetMean};
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, ResultRow};
@@ -74,21 +75,6 @@ impl NeededRow {
             rel_change: s.rel_change,
         }
     }
-}
-
-fn write_csv<T: serde::Serialize>(
-    path: &Path,
-    rows: impl IntoIterator<Item = T>,
-) -> anyhow::Result<()> {
-    let mut w = csv::Writer::from_path(path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
-    for r in rows {
-        w.serialize(r)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-    }
-    w.flush()
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
 }
 
 fn percent(v: Option<f64>) -> String {

@@ -86,3 +86,21 @@ pub fn main_exit_code() -> i32 {
         }
     }
 }
+
+/// Writes `rows` as a CSV file with a header from their field names (the tables of `map`,
+/// `resynth` and `diagnose`); errors name the file.
+pub(crate) fn write_csv<T: serde::Serialize>(
+    path: &std::path::Path,
+    rows: impl IntoIterator<Item = T>,
+) -> anyhow::Result<()> {
+    use anyhow::Context;
+    let mut w = csv::Writer::from_path(path)
+        .with_context(|| format!("cannot create {}", path.display()))?;
+    for r in rows {
+        w.serialize(r)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+    }
+    w.flush()
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
+use super::write_csv;
 use crate::analysis::resynthesis::{resynthesize, BandDamping};
 use crate::sim::assembly::assemble;
 use crate::sim::eigen::{lowest_modes, ModeRequest};
@@ -91,16 +92,6 @@ pub fn read_global(path: &Path) -> anyhow::Result<Vec<BandDamping>> {
 
 fn pct(v: Option<f64>) -> String {
     v.map_or("—".into(), |v| format!("{:.2}", 100.0 * v))
-}
-
-fn write_csv<T: serde::Serialize>(path: &Path, rows: &[T]) -> anyhow::Result<()> {
-    let mut w = csv::Writer::from_path(path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
-    for r in rows {
-        w.serialize(r)?;
-    }
-    w.flush()?;
-    Ok(())
 }
 
 /// Runs `resynth`.
