@@ -7,7 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{decaying_sines, rel_err};
+use common::{csv_rows, decaying_sines, rel_err};
 use dampscope::source::{write_recording_set, write_wav_f32, DecayKind, RecordingMeta, Sensor};
 
 fn tmp(name: &str) -> PathBuf {
@@ -23,21 +23,6 @@ fn map(args: &[&str]) -> std::process::Output {
         .args(args)
         .output()
         .unwrap()
-}
-
-fn read_csv(path: &Path) -> Vec<std::collections::HashMap<String, String>> {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
-    r.records()
-        .map(|rec| {
-            let rec = rec.unwrap();
-            header
-                .iter()
-                .cloned()
-                .zip(rec.iter().map(String::from))
-                .collect()
-        })
-        .collect()
 }
 
 /// 4 × 3 sensors, 100 Hz decays with D rising along x (1 … 2.5 %), one sensor still.
@@ -95,7 +80,7 @@ fn map_of_a_set_with_known_local_damping() {
     assert!(printed.contains("11/12"), "{printed}");
 
     // Every sensor's row carries its own truth (D uses f_center = 100 Hz = f).
-    let rows = read_csv(&out.join("results.csv"));
+    let rows = csv_rows(&out.join("results.csv"));
     for (s, t) in sensors.iter().zip(&truth) {
         let r = rows.iter().find(|r| r["channel"] == s.id);
         match t {
@@ -110,7 +95,7 @@ fn map_of_a_set_with_known_local_damping() {
             ),
         }
     }
-    let g = read_csv(&out.join("global.csv"));
+    let g = csv_rows(&out.join("global.csv"));
     assert_eq!(g.len(), 1);
     let known: Vec<f64> = truth.iter().flatten().copied().collect();
     let want = known.iter().sum::<f64>() / known.len() as f64;
@@ -128,7 +113,7 @@ fn map_of_a_set_with_known_local_damping() {
     assert!(std > 0.004, "the spread of the truths must show: {std}");
 
     // Every 2nd sensor: 0, 2, 4, … → x = 0 and 1 m only (D 1 % and 2 %).
-    let needed = read_csv(&out.join("sensors_needed.csv"));
+    let needed = csv_rows(&out.join("sensors_needed.csv"));
     let k2 = needed.iter().find(|r| r["step"] == "2").unwrap();
     let m2: f64 = k2["mean_d"].parse().unwrap();
     assert!(rel_err(m2, 0.015) < 0.01, "k = 2: {m2}");
@@ -170,7 +155,7 @@ fn sensor_positions_from_a_file_or_an_error() {
     std::fs::write(&sensors, "id,x,y\nch0,0,0\nch1,1,0\n").unwrap();
     let o = run(args(&["--sensors", sensors.to_str().unwrap()]));
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let g = read_csv(&out.join("global.csv"));
+    let g = csv_rows(&out.join("global.csv"));
     let mean: f64 = g[0]["mean_d"].parse().unwrap();
     assert!(rel_err(mean, 0.015) < 0.01, "{mean}");
     // Channels without a position are an error, not a silent drop.

@@ -1,9 +1,13 @@
 //! `dampscope resynth`: the global damping per band applied to the undamped modes (report
 //! eqs. 4.6–4.8), end to end through the binary.
 
+mod common;
+
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+use common::csv_rows;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("dampscope-resynth-{name}-{}", std::process::id()));
@@ -23,19 +27,6 @@ fn dampscope(args: &[&str]) -> String {
         String::from_utf8_lossy(&o.stderr)
     );
     String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-fn rows(path: &Path) -> Vec<HashMap<String, String>> {
-    let mut r = csv::Reader::from_path(path).unwrap();
-    let h: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
-    r.records()
-        .map(|x| {
-            h.iter()
-                .cloned()
-                .zip(x.unwrap().iter().map(String::from))
-                .collect()
-        })
-        .collect()
 }
 
 fn num(r: &HashMap<String, String>, k: &str) -> f64 {
@@ -89,12 +80,12 @@ fn the_true_damping_gives_the_model_back_and_a_wrong_one_does_not() {
         out
     };
     let good = run(0.025, &[]);
-    let modes = rows(&good.join("modes.csv"));
+    let modes = csv_rows(&good.join("modes.csv"));
     assert!(modes.len() > 20, "{} modes", modes.len());
     for m in &modes {
         assert!((num(m, "d_model") - 0.025).abs() < 1e-9, "{m:?}");
     }
-    let bands = rows(&good.join("resynth.csv"));
+    let bands = csv_rows(&good.join("resynth.csv"));
     assert_eq!(bands.len(), 4, "the band without a mean is skipped");
     for b in &bands {
         // Measured 0.03–0.7 % (rising towards fmax: the static residual of the modes above
@@ -102,7 +93,7 @@ fn the_true_damping_gives_the_model_back_and_a_wrong_one_does_not() {
         assert!(num(b, "eps_driving_point") < 0.01, "{b:?}");
         assert!(num(b, "eps_all_sensors") < 0.01, "{b:?}");
     }
-    let low = rows(&run(0.02, &[]).join("resynth.csv"));
+    let low = csv_rows(&run(0.02, &[]).join("resynth.csv"));
     for b in &low {
         assert!(
             num(b, "eps_all_sensors") > 0.05,
@@ -110,7 +101,7 @@ fn the_true_damping_gives_the_model_back_and_a_wrong_one_does_not() {
         );
     }
     // Without the residual flexibility the driving point carries the modal truncation error.
-    let bare = rows(&run(0.025, &["--no-residual"]).join("resynth.csv"));
+    let bare = csv_rows(&run(0.025, &["--no-residual"]).join("resynth.csv"));
     let worst = |rs: &[HashMap<String, String>]| {
         rs.iter()
             .map(|b| num(b, "eps_driving_point"))
@@ -167,7 +158,7 @@ fn report_patch_plate_global_damping_and_resynthesis() {
         "--out",
         &s(&out),
     ]);
-    let bands = rows(&out.join("resynth.csv"));
+    let bands = csv_rows(&out.join("resynth.csv"));
     assert_eq!(bands.len(), 8);
     for b in &bands {
         let (g, model) = (num(b, "d_global"), num(b, "d_model_mean"));
