@@ -403,6 +403,12 @@ impl ChannelAnalyzer {
     pub fn failed(&self) -> bool {
         self.failed
     }
+
+    /// One row per band carrying only `flag` (for a channel that cannot go on).
+    fn flagged_rows(&self, flag: Flag) -> Vec<ResultRow> {
+        let n = self.front_end.bands().len();
+        self.rows_for(None, vec![DecayEstimate::failed(flag); n])
+    }
 }
 
 /// What a run saw.
@@ -414,6 +420,9 @@ pub struct RunSummary {
     pub non_finite_channels: Vec<String>,
     /// The input error that ended the run early, if any (results up to it were delivered).
     pub input_error: Option<SourceError>,
+    /// Channels stopped by an internal error (a bug), flagged `internal_error`; the other
+    /// channels went on.
+    pub internal_error_channels: Vec<String>,
 }
 
 enum ToWorker {
@@ -494,6 +503,11 @@ pub fn run(
                 {
                     summary.non_finite_channels.push(r.channel.clone());
                 }
+                if r.estimate.has(Flag::InternalError)
+                    && !summary.internal_error_channels.contains(&r.channel)
+                {
+                    summary.internal_error_channels.push(r.channel.clone());
+                }
             }
             if result.is_ok() {
                 result = on_rows(&rows);
@@ -512,19 +526,39 @@ fn worker(
     rx: Receiver<ToWorker>,
     row_tx: Sender<Vec<ResultRow>>,
 ) {
+    use std::panic::{catch_unwind, AssertUnwindSafe};
     let mut out = Vec::new();
+    // A panic in one channel's analysis (a bug) stops that channel only: its rows say
+    // `internal_error` and the channels sharing this worker go on.
+    let mut crashed = vec![false; group.len()];
+    let mut guarded =
+        |i: usize,
+         an: &mut ChannelAnalyzer,
+         out: &mut Vec<ResultRow>,
+         f: &dyn Fn(&mut ChannelAnalyzer, &mut Vec<ResultRow>)| {
+            if crashed[i] {
+                return;
+            }
+            let mut local = Vec::new();
+            if catch_unwind(AssertUnwindSafe(|| f(an, &mut local))).is_ok() {
+                out.append(&mut local);
+            } else {
+                crashed[i] = true;
+                out.extend(an.flagged_rows(Flag::InternalError));
+            }
+        };
     for msg in rx.iter() {
         match msg {
             ToWorker::Block(block) => {
-                for (c, an) in group.iter_mut() {
+                for (i, (c, an)) in group.iter_mut().enumerate() {
                     if let Some(samples) = block.channels.get(*c) {
-                        an.push(samples, &mut out);
+                        guarded(i, an, &mut out, &|an, o| an.push(samples, o));
                     }
                 }
             }
             ToWorker::End { truncated } => {
-                for (_, an) in group.iter_mut() {
-                    an.finish(truncated, &mut out);
+                for (i, (_, an)) in group.iter_mut().enumerate() {
+                    guarded(i, an, &mut out, &|an, o| an.finish(truncated, o));
                 }
             }
         }

@@ -128,3 +128,13 @@ fn below_fmax_returns_every_mode_below_and_none_above() {
         assert!(rel(*a, *b) < 1e-7, "{a} vs {b}");
     }
 }
+
+/// Found with `diagnose --fmax-modes-hz 3`: asking for the modes below a frequency under the
+/// first mode made the Ritz refinement decompose a 0 × 0 matrix and panic. Now: no modes.
+#[test]
+fn no_mode_below_the_request_is_an_empty_answer() {
+    let c = assemble(&plate_with_mesh(8, 12, 2)).unwrap();
+    let m = lowest_modes(&c, ModeRequest::BelowHz(1.0)).unwrap();
+    assert!(m.frequencies_hz.is_empty());
+    assert_eq!(m.shapes.ncols(), 0);
+}

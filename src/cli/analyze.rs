@@ -200,6 +200,13 @@ pub fn exit_code_of(summary: &pipeline::RunSummary) -> i32 {
         );
         code = EXIT_PARTIAL;
     }
+    if !summary.internal_error_channels.is_empty() {
+        eprintln!(
+            "dampscope: error: internal error in channel(s) {} (a bug; please report it with the input): their rows say internal_error, the other channels were analysed",
+            summary.internal_error_channels.join(", ")
+        );
+        code = EXIT_PARTIAL;
+    }
     if !summary.non_finite_channels.is_empty() {
         eprintln!(
             "dampscope: warning: NaN or infinite samples in channel(s) {}: no estimates for them (flag non_finite_input)",

@@ -44,6 +44,9 @@ pub enum Flag {
     /// The decay outlasted the buffering front end's limit (`max_decay_s`): only its first
     /// part was analysed.
     DecayTooLong,
+    /// The analysis of this channel stopped on an internal error (a bug, reported on stderr);
+    /// the other channels were analysed.
+    InternalError,
 }
 
 impl Flag {
@@ -63,6 +66,7 @@ impl Flag {
             Flag::NoiseCompensated => "noise_compensated",
             Flag::OffBandDominant => "off_band_dominant",
             Flag::DecayTooLong => "decay_too_long",
+            Flag::InternalError => "internal_error",
         }
     }
 }

@@ -205,6 +205,13 @@ fn shared_plan(nfft: usize) -> Arc<dyn RealToComplex<f64>> {
 /// Bin weights of `band`: the fraction of each bin's extent inside the band.
 fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
     let lo_bin = ((band.lo_hz / bin_hz) - 0.5).floor().max(0.0) as usize;
+    if lo_bin >= n_bins {
+        // Entirely above Nyquist: no bins (the pipeline flags `band_out_of_range`).
+        return BandBins {
+            first_bin: 0,
+            weights: Vec::new(),
+        };
+    }
     let hi_bin = (((band.hi_hz / bin_hz) + 0.5).ceil() as usize).min(n_bins.saturating_sub(1));
     let mut weights = Vec::new();
     for b in lo_bin..=hi_bin.max(lo_bin) {
@@ -287,6 +294,27 @@ mod tests {
         let bb = band_weights(&Band::new(15.0, 40.0).unwrap(), 10.0, 100);
         let total: f64 = bb.weights.iter().sum();
         assert!((total - 2.5).abs() < 1e-12, "{:?}", bb);
+    }
+
+    /// Found with `map --band 600:700` on a 500 Hz recording: a band wholly above Nyquist
+    /// sliced past the spectrum and panicked the worker. Now it has no bins and zero energy.
+    #[test]
+    fn a_band_above_nyquist_has_no_bins() {
+        let bb = band_weights(&Band::new(600.0, 700.0).unwrap(), 10.0, 26);
+        assert!(bb.weights.is_empty());
+        let mut fe = StftFrontEnd::new(
+            StftSettings::default(),
+            500.0,
+            &[Band::new(600.0, 700.0).unwrap()],
+        )
+        .unwrap();
+        let x: Vec<f64> = (0..2000).map(|i| (0.3 * i as f64).sin()).collect();
+        let mut frames = 0;
+        fe.process(&x, &mut |f: Frame<'_>| {
+            assert_eq!(f.energy[0], 0.0);
+            frames += 1;
+        });
+        assert!(frames > 0);
     }
 
     #[test]

@@ -344,6 +344,10 @@ fn refine(
     phi: Mat<f64>,
 ) -> Result<(Vec<f64>, Mat<f64>), SimError> {
     let (n, k) = (phi.nrows(), phi.ncols());
+    if k == 0 {
+        // No mode below the requested frequency: nothing to refine.
+        return Ok((Vec::new(), phi));
+    }
     let mut y = Mat::<f64>::zeros(n, k);
     for c in 0..k {
         sparse_matvec(&system.mass, phi.col_as_slice(c), y.col_as_slice_mut(c));
