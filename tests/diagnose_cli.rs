@@ -71,8 +71,8 @@ fn rms(out: &str) -> (f64, f64) {
 }
 
 /// Report section 3.3: a g = 10 % patch in a g = 5 % plate, which the 55 Hz damping map does
-/// not reveal (its local D is lower inside the patch than outside). Measured: the main cell
-/// x 1.0–1.5, y 2.0–2.5 m (Δg 0.0425) overlaps the patch; rms 0.123 % → 0.023 %.
+/// not reveal (its local D is lower inside the patch than outside). The found cell, up to the
+/// plate's mirror symmetry, is x 1.0–1.5, y 2.0–2.5 m, which overlaps the patch.
 #[test]
 fn finds_a_concealed_damping_patch() {
     let dir = tmp("patch");
@@ -82,26 +82,11 @@ fn finds_a_concealed_damping_patch() {
     let out = diagnose(&dir, &truth, &base);
     let v = verdict(&out);
     assert!(v.contains("extra loss in"), "{out}");
-    // The cell with the largest Δg must overlap the patch.
-    let updated = std::fs::read_to_string(dir.join("out/updated.toml")).unwrap();
-    let model: toml::Value = toml::from_str(&updated).unwrap();
-    let patches = model["patch"].as_array().unwrap();
-    let best = patches
-        .iter()
-        .max_by(|a, b| {
-            let g = |p: &toml::Value| p["loss_factor"].as_float().unwrap();
-            g(a).total_cmp(&g(b))
-        })
-        .unwrap();
-    let span = |k: &str| -> [f64; 2] {
-        let a = best[k].as_array().unwrap();
-        [a[0].as_float().unwrap(), a[1].as_float().unwrap()]
-    };
-    let (x, y) = (span("x"), span("y"));
-    assert!(
-        x[0] < 1.625 && x[1] > 1.125 && y[0] < 2.5 && y[1] > 1.875,
-        "{x:?} {y:?}\n{out}"
-    );
+    // The plate is symmetric about x = 1 m and y = 1.5 m, and so is every mode's strain
+    // energy: the patch's cell and its mirror images are indistinguishable by modal damping,
+    // and the verdict must say so, listing the true cell among them.
+    assert!(v.contains("x 1.000–1.500 m, y 2.000–2.500 m"), "{out}");
+    assert!(v.contains("indistinguishable by modal damping"), "{out}");
     let (before, after) = rms(&out);
     assert!(after < before / 4.0, "{before} → {after}\n{out}");
     let _ = std::fs::remove_dir_all(&dir);

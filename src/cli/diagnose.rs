@@ -15,8 +15,8 @@ use super::bands_arg::BandArgs;
 use super::compare::DirectionArg;
 use super::write_csv;
 use crate::diagnose::{
-    cell_energy_fractions, cell_grid, fit_hypotheses, per_mode_damping, updated_model, Cell,
-    Hypothesis, ModeDamping,
+    cell_energy_fractions, cell_grid, fit_hypotheses, indistinguishable, per_mode_damping,
+    updated_model, Cell, Hypothesis, ModeDamping,
 };
 use crate::frontend::auto_bands::bands_around_modes;
 use crate::frontend::Band;
@@ -25,6 +25,7 @@ use crate::sim::assembly::assemble;
 use crate::sim::eigen::{lowest_modes, ModeRequest, Modes};
 use crate::sim::model::{Model, SensorSpec};
 use crate::sim::simulate::{simulate, SimulateOptions};
+use crate::sim::truncation::modal_stiffness;
 use crate::source::memory::MemorySource;
 use crate::source::recording_set::open_recording_set;
 use crate::source::{SignalInfo, Source};
@@ -128,7 +129,13 @@ fn pct(v: Option<f64>) -> String {
     v.map_or("—".into(), |v| format!("{:.3}", 100.0 * v))
 }
 
-fn describe(h: &Hypothesis, cells: &[Cell]) -> String {
+fn describe(h: &Hypothesis, cells: &[Cell], fractions: &faer::Mat<f64>) -> String {
+    let span = |c: &Cell| {
+        format!(
+            "x {:.3}–{:.3} m, y {:.3}–{:.3} m",
+            c.x_m[0], c.x_m[1], c.y_m[0], c.y_m[1]
+        )
+    };
     match h {
         Hypothesis::NoChange => "no change: the model's damping explains the recordings".into(),
         Hypothesis::GlobalLoss { delta_g } => {
@@ -141,11 +148,17 @@ fn describe(h: &Hypothesis, cells: &[Cell]) -> String {
             let parts: Vec<String> = used
                 .iter()
                 .map(|&(r, g)| {
-                    let c = cells[r];
-                    format!(
-                        "x {:.3}–{:.3} m, y {:.3}–{:.3} m: Δg {:.4}",
-                        c.x_m[0], c.x_m[1], c.y_m[0], c.y_m[1], g
-                    )
+                    let twins = indistinguishable(fractions, r, 0.02);
+                    let also = if twins.is_empty() {
+                        String::new()
+                    } else {
+                        let t: Vec<String> = twins.iter().map(|&q| span(&cells[q])).collect();
+                        format!(
+                            " (or, indistinguishable by modal damping: {})",
+                            t.join(", ")
+                        )
+                    };
+                    format!("{}: Δg {g:.4}{also}", span(&cells[r]))
                 })
                 .collect();
             format!("extra loss in {} cell(s): {}", used.len(), parts.join("; "))
@@ -204,14 +217,25 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         .iter()
         .map(|&k| recorded[k].median_d.unwrap_or(0.0) - simulated[k].median_d.unwrap_or(0.0))
         .collect();
-    let sigma: Vec<f64> = used
+    // The estimator checks itself on the model: where its per-mode D on the simulated
+    // responses misses the model's own modal D (modal strain energy), that mode's difference
+    // is trusted less by as much (close modes and nodal lines bias decay estimates).
+    let bias: Vec<f64> = used
         .iter()
         .map(|&k| {
+            let i = keep[k];
+            let m = modal_stiffness(&sys, modes.frequencies_hz[i], modes.shapes.as_ref(), i);
+            simulated[k].median_d.unwrap_or(0.0) - 0.5 * m.im / m.re
+        })
+        .collect();
+    let sigma: Vec<f64> = used
+        .iter()
+        .zip(&bias)
+        .map(|(&k, b)| {
             let (r, s) = (recorded[k], simulated[k]);
             let se = r.std_error.unwrap_or(0.0).powi(2) + s.std_error.unwrap_or(0.0).powi(2);
-            (se + (args.model_form * s.median_d.unwrap_or(0.0)).powi(2))
-                .sqrt()
-                .max(1e-9)
+            let floor = (args.model_form * s.median_d.unwrap_or(0.0)).powi(2);
+            (se + floor + b * b).sqrt().max(1e-9)
         })
         .collect();
     let fractions = faer::Mat::from_fn(used.len(), cells.len(), |i, r| {
@@ -264,7 +288,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             f.chi2, f.n_params, f.bic
         );
     }
-    println!("verdict: {}", describe(&best, &cells));
+    println!("verdict: {}", describe(&best, &cells, &fractions));
     println!(
         "fit over {} modes: rms(D_rec − D_model) {:.4} % before, {:.4} % after the update",
         used.len(),

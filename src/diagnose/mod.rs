@@ -246,6 +246,21 @@ pub fn fit_hypotheses(residual_d: &[f64], sigma_d: &[f64], fractions: &Mat<f64>)
     fits
 }
 
+/// The cells that per-mode damping cannot tell apart from cell `r`: their strain-energy shares
+/// (columns of `fractions`, modes × cells) match r's within `rel_tol` of r's largest share for
+/// every mode. On a symmetric plate these are r's mirror images: modal damping alone cannot
+/// say on which side of a symmetry line the loss sits.
+pub fn indistinguishable(fractions: &Mat<f64>, r: usize, rel_tol: f64) -> Vec<usize> {
+    let n = fractions.nrows();
+    let scale = (0..n).map(|i| fractions[(i, r)].abs()).fold(0.0, f64::max);
+    (0..fractions.ncols())
+        .filter(|&q| q != r)
+        .filter(|&q| {
+            (0..n).all(|i| (fractions[(i, q)] - fractions[(i, r)]).abs() <= rel_tol * scale)
+        })
+        .collect()
+}
+
 /// `base` with the hypothesis applied: a global loss change on the plate and every patch, or
 /// one patch per cell with the plate's loss factor plus the cell's Δg (appended last, so they
 /// take precedence over existing patches there).
@@ -313,6 +328,19 @@ mod tests {
             fit_hypotheses(&noise, &sigma, &f)[0].hypothesis,
             Hypothesis::NoChange
         );
+    }
+
+    #[test]
+    fn mirror_cells_are_indistinguishable() {
+        // Cells 0 and 3 share their energy shares (mirror images); cell 1 differs by 5 %.
+        let f = Mat::from_fn(3, 4, |i, r| match r {
+            0 | 3 => 0.1 * (i + 1) as f64,
+            1 => 0.1 * (i + 1) as f64 * if i == 2 { 1.05 } else { 1.0 },
+            _ => 0.02,
+        });
+        assert_eq!(indistinguishable(&f, 0, 0.02), vec![3]);
+        assert_eq!(indistinguishable(&f, 3, 0.02), vec![0]);
+        assert!(indistinguishable(&f, 2, 0.02).is_empty());
     }
 
     #[test]
