@@ -22,7 +22,7 @@ use crate::frontend::auto_bands::bands_around_modes;
 use crate::frontend::Band;
 use crate::pipeline::{self, AnalysisConfig, FrontEndFactory, ResultRow};
 use crate::sim::assembly::assemble;
-use crate::sim::eigen::{lowest_modes, ModeRequest, Modes};
+use crate::sim::eigen::{lowest_modes, ModeRequest};
 use crate::sim::model::{Model, SensorSpec};
 use crate::sim::simulate::{simulate, SimulateOptions};
 use crate::sim::truncation::modal_stiffness;
@@ -110,12 +110,7 @@ fn analyze_modes(source: Box<dyn Source>, bands: &[Band]) -> anyhow::Result<Vec<
 }
 
 /// Simulates `model` and analyses its responses like the recordings.
-fn simulated_modes(
-    model: &Model,
-    modes: &Modes,
-    bands: &[Band],
-) -> anyhow::Result<Vec<ModeDamping>> {
-    let _ = modes;
+fn simulated_modes(model: &Model, bands: &[Band]) -> anyhow::Result<Vec<ModeDamping>> {
     let sim = simulate(model, &SimulateOptions::default())?;
     let info = SignalInfo {
         sample_rate_hz: sim.fs_hz,
@@ -199,7 +194,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         args.fmax_modes_hz
     );
     let recorded = per_mode_damping(&analyze_modes(set.source, &bands)?, &bands);
-    let simulated = simulated_modes(&model, &modes, &bands)?;
+    let simulated = simulated_modes(&model, &bands)?;
 
     let cells = cell_grid(model.plate.lx, model.plate.ly, nx, ny);
     let all_fractions = cell_energy_fractions(&model, &modes, &cells)?;
@@ -247,7 +242,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     let after = if best == Hypothesis::NoChange {
         simulated.clone()
     } else {
-        simulated_modes(&updated, &modes, &bands)?
+        simulated_modes(&updated, &bands)?
     };
     write_outputs(
         &args.out, &bands, &recorded, &simulated, &after, &fits, &updated,
