@@ -10,23 +10,24 @@ use std::sync::Arc;
 
 use anyhow::{bail, Context};
 
+use super::analyze::MAX_WHOLE_SAMPLES;
 use super::analyze::{make_front_end, FrontEndChoice};
 use super::bands_arg::BandArgs;
 use super::compare::DirectionArg;
 use super::write_csv;
 use crate::diagnose::{
-    cell_energy_fractions, cell_grid, fit_hypotheses, indistinguishable, per_mode_damping,
-    updated_model, Cell, Hypothesis, ModeDamping,
+    cell_energy_fractions, cell_grid, cell_images, fit_hypotheses, indistinguishable,
+    per_mode_damping, updated_model, Cell, Hypothesis, ModeDamping,
 };
 use crate::frontend::auto_bands::bands_around_modes;
 use crate::frontend::Band;
 use crate::pipeline::{self, AnalysisConfig, FrontEndFactory, ResultRow};
 use crate::sim::assembly::assemble;
-use crate::sim::eigen::{lowest_modes, ModeRequest};
+use crate::sim::eigen::{lowest_modes, ModeRequest, Modes};
 use crate::sim::model::{Model, SensorSpec};
-use crate::sim::simulate::{simulate, SimulateOptions};
+use crate::sim::simulate::{simulate_system, SimulateOptions};
 use crate::sim::truncation::modal_stiffness;
-use crate::source::memory::MemorySource;
+use crate::source::memory::{read_all, MemorySource};
 use crate::source::recording_set::open_recording_set;
 use crate::source::{SignalInfo, Source};
 
@@ -109,22 +110,61 @@ fn analyze_modes(source: Box<dyn Source>, bands: &[Band]) -> anyhow::Result<Vec<
     Ok(rows)
 }
 
-/// Simulates `model` and analyses its responses like the recordings.
-fn simulated_modes(model: &Model, bands: &[Band]) -> anyhow::Result<Vec<ModeDamping>> {
-    let sim = simulate(model, &SimulateOptions::default())?;
+/// Impulse responses of `model` at its sensors. Loss factors do not change the undamped
+/// modes, so every variant of one mesh reuses `modes` (modes below 1.5 fmax).
+fn impulse_responses(model: &Model, modes: &Modes) -> anyhow::Result<Vec<Vec<f64>>> {
+    let sys = assemble(model)?;
+    let r = simulate_system(
+        &sys,
+        Some(modes),
+        model.output.fmax,
+        model.output.df,
+        &SimulateOptions::default(),
+    )?;
+    Ok(r.impulse_responses)
+}
+
+/// Analyses impulse responses like the recordings: per-mode damping.
+fn measured_modes(
+    irs: &[Vec<f64>],
+    fs_hz: f64,
+    names: &[String],
+    bands: &[Band],
+) -> anyhow::Result<Vec<ModeDamping>> {
     let info = SignalInfo {
-        sample_rate_hz: sim.fs_hz,
-        channel_names: sim.sensors.iter().map(|s| s.id.clone()).collect(),
+        sample_rate_hz: fs_hz,
+        channel_names: names.to_vec(),
     };
-    let source = Box::new(MemorySource::new(info, sim.impulse_responses)?);
+    let source = Box::new(MemorySource::new(info, irs.to_vec())?);
     Ok(per_mode_damping(&analyze_modes(source, bands)?, bands))
+}
+
+/// Time-response misfit Σ (x_rec − x_sim)² / Σ x_rec² over all channels (common length).
+fn misfit(recorded: &[Vec<f64>], simulated: &[Vec<f64>]) -> f64 {
+    let (mut num, mut den) = (0.0, 0.0);
+    for (r, s) in recorded.iter().zip(simulated) {
+        for (a, b) in r.iter().zip(s) {
+            num += (a - b) * (a - b);
+            den += a * a;
+        }
+    }
+    if den > 0.0 {
+        num / den
+    } else {
+        f64::INFINITY
+    }
 }
 
 fn pct(v: Option<f64>) -> String {
     v.map_or("—".into(), |v| format!("{:.3}", 100.0 * v))
 }
 
-fn describe(h: &Hypothesis, cells: &[Cell], fractions: &faer::Mat<f64>) -> String {
+fn describe(
+    h: &Hypothesis,
+    cells: &[Cell],
+    fractions: &faer::Mat<f64>,
+    settled: &[usize],
+) -> String {
     let span = |c: &Cell| {
         format!(
             "x {:.3}–{:.3} m, y {:.3}–{:.3} m",
@@ -144,7 +184,7 @@ fn describe(h: &Hypothesis, cells: &[Cell], fractions: &faer::Mat<f64>) -> Strin
                 .iter()
                 .map(|&(r, g)| {
                     let twins = indistinguishable(fractions, r, 0.02);
-                    let also = if twins.is_empty() {
+                    let also = if twins.is_empty() || settled.contains(&r) {
                         String::new()
                     } else {
                         let t: Vec<String> = twins.iter().map(|&q| span(&cells[q])).collect();
@@ -194,7 +234,10 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         args.fmax_modes_hz
     );
     let recorded = per_mode_damping(&analyze_modes(set.source, &bands)?, &bands);
-    let simulated = simulated_modes(&model, &bands)?;
+    let names: Vec<String> = set.sensors.iter().map(|s| s.id.clone()).collect();
+    let fast_modes = lowest_modes(&sys, ModeRequest::BelowHz(1.5 * model.output.fmax))?;
+    let base_irs = impulse_responses(&model, &fast_modes)?;
+    let simulated = measured_modes(&base_irs, fs, &names, &bands)?;
 
     let cells = cell_grid(model.plate.lx, model.plate.ly, nx, ny);
     let all_fractions = cell_energy_fractions(&model, &modes, &cells)?;
@@ -237,13 +280,107 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         all_fractions[(keep[used[i]], r)]
     });
     let fits = fit_hypotheses(&residual, &sigma, &fractions);
-    let best = fits[0].hypothesis.clone();
-    let updated = updated_model(&model, &cells, &best);
-    let after = if best == Hypothesis::NoChange {
-        simulated.clone()
-    } else {
-        simulated_modes(&updated, &bands)?
+    let mut best = fits[0].hypothesis.clone();
+    let mut tie_break = None;
+    let mut settled_cells: Vec<usize> = Vec::new();
+    let after = match &best {
+        Hypothesis::NoChange => simulated.clone(),
+        Hypothesis::LocalLoss { cells: found } => {
+            // Mirror images are indistinguishable by modal damping; the time responses at the
+            // sensors (the excitation is off-centre) can still tell them apart. Each cell
+            // (largest Δg first) takes the image that fits the time responses best; then every
+            // single-cell swap of the result is checked to say whether the choice is clear.
+            let mut recordings = open_recording_set(&args.input)?;
+            let rec = read_all(recordings.source.as_mut(), MAX_WHOLE_SAMPLES)?;
+            let rho0 = misfit(&rec, &base_irs);
+            let (lx, ly) = (model.plate.lx, model.plate.ly);
+            let gmax = found.iter().map(|p| p.1).fold(0.0, f64::max);
+            let mut set: Vec<(usize, f64)> = found
+                .iter()
+                .copied()
+                .filter(|p| p.1 >= 0.05 * gmax)
+                .collect();
+            set.sort_by(|a, b| b.1.total_cmp(&a.1));
+            let mut cache: Vec<(Vec<usize>, f64)> = Vec::new();
+            let mut rho_of = |set: &[(usize, f64)]| -> anyhow::Result<f64> {
+                let mut key: Vec<usize> = set.iter().map(|p| p.0).collect();
+                key.sort_unstable();
+                if let Some((_, rho)) = cache.iter().find(|(k, _)| *k == key) {
+                    return Ok(*rho);
+                }
+                let h = Hypothesis::LocalLoss {
+                    cells: set.to_vec(),
+                };
+                let rho = misfit(
+                    &rec,
+                    &impulse_responses(&updated_model(&model, &cells, &h), &fast_modes)?,
+                );
+                cache.push((key, rho));
+                Ok(rho)
+            };
+            let mut best_rho = rho_of(&set)?;
+            for k in 0..set.len() {
+                for q in cell_images(&cells, set[k].0, &fractions, lx, ly) {
+                    if set.iter().any(|p| p.0 == q) {
+                        continue;
+                    }
+                    let mut cand = set.clone();
+                    cand[k].0 = q;
+                    let rho = rho_of(&cand)?;
+                    if rho < best_rho {
+                        (best_rho, set) = (rho, cand);
+                    }
+                }
+            }
+            // Verification, per cell: its image is settled when every other image of it fits
+            // worse by at least a quarter of what the cell itself contributes to the fit.
+            let mut settled = Vec::with_capacity(set.len());
+            for k in 0..set.len() {
+                let mut runner_up = f64::INFINITY;
+                for q in cell_images(&cells, set[k].0, &fractions, lx, ly) {
+                    if set.iter().any(|p| p.0 == q) {
+                        continue;
+                    }
+                    let mut cand = set.clone();
+                    cand[k].0 = q;
+                    runner_up = runner_up.min(rho_of(&cand)?);
+                }
+                let without: Vec<(usize, f64)> = set
+                    .iter()
+                    .enumerate()
+                    .filter(|(j, _)| *j != k)
+                    .map(|(_, p)| *p)
+                    .collect();
+                let effect = if without.is_empty() {
+                    rho0
+                } else {
+                    rho_of(&without)?
+                } - best_rho;
+                let ok = runner_up.is_infinite()
+                    || (effect > 0.0 && runner_up - best_rho >= 0.25 * effect);
+                settled.push((set[k].0, ok));
+            }
+            let resolved = settled.iter().all(|p| p.1);
+            let mut tried: Vec<(f64, Hypothesis)> = cache
+                .iter()
+                .map(|(k, rho)| {
+                    let c = k.iter().map(|&r| (r, 0.0)).collect();
+                    (*rho, Hypothesis::LocalLoss { cells: c })
+                })
+                .collect();
+            tried.sort_by(|p, q| p.0.total_cmp(&q.0));
+            tie_break = Some((rho0, tried, resolved));
+            settled_cells = settled.iter().filter(|p| p.1).map(|p| p.0).collect();
+            best = Hypothesis::LocalLoss { cells: set };
+            let irs = impulse_responses(&updated_model(&model, &cells, &best), &fast_modes)?;
+            measured_modes(&irs, fs, &names, &bands)?
+        }
+        Hypothesis::GlobalLoss { .. } => {
+            let irs = impulse_responses(&updated_model(&model, &cells, &best), &fast_modes)?;
+            measured_modes(&irs, fs, &names, &bands)?
+        }
     };
+    let updated = updated_model(&model, &cells, &best);
     write_outputs(
         &args.out, &bands, &recorded, &simulated, &after, &fits, &updated,
     )?;
@@ -283,7 +420,40 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
             f.chi2, f.n_params, f.bic
         );
     }
-    println!("verdict: {}", describe(&best, &cells, &fractions));
+    if let Some((rho0, tried, resolved)) = &tie_break {
+        if tried.len() > 1 {
+            println!(
+                "mirror images: time-response misfit Σ(x_rec − x_sim)²/Σx_rec² (model as given: {rho0:.3e})"
+            );
+            for (rho, h) in tried {
+                if let Hypothesis::LocalLoss { cells: c } = h {
+                    let where_: Vec<String> = c
+                        .iter()
+                        .map(|&(r, _)| {
+                            let k = cells[r];
+                            format!(
+                                "x {:.2}–{:.2} y {:.2}–{:.2}",
+                                k.x_m[0], k.x_m[1], k.y_m[0], k.y_m[1]
+                            )
+                        })
+                        .collect();
+                    println!("  {rho:.3e}  {}", where_.join(", "));
+                }
+            }
+            println!(
+                "{}",
+                if *resolved {
+                    "mirror ambiguity resolved by the time responses"
+                } else {
+                    "mirror ambiguity resolved only in part: cells still listed with their images are not settled"
+                }
+            );
+        }
+    }
+    println!(
+        "verdict: {}",
+        describe(&best, &cells, &fractions, &settled_cells)
+    );
     println!(
         "fit over {} modes: rms(D_rec − D_model) {:.4} % before, {:.4} % after the update",
         used.len(),

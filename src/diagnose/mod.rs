@@ -261,6 +261,44 @@ pub fn indistinguishable(fractions: &Mat<f64>, r: usize, rel_tol: f64) -> Vec<us
         .collect()
 }
 
+/// The mirror images of cell `r` (x → lx − x, y → ly − y, both) that exist in `cells` and
+/// that modal damping cannot tell from `r` ([`indistinguishable`]); `r` itself excluded.
+pub fn cell_images(
+    cells: &[Cell],
+    r: usize,
+    fractions: &Mat<f64>,
+    lx_m: f64,
+    ly_m: f64,
+) -> Vec<usize> {
+    let same = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + a.abs());
+    let twins = indistinguishable(fractions, r, 0.02);
+    let c = cells[r];
+    let mut out = Vec::new();
+    for (mx, my) in [(true, false), (false, true), (true, true)] {
+        let x = if mx {
+            [lx_m - c.x_m[1], lx_m - c.x_m[0]]
+        } else {
+            c.x_m
+        };
+        let y = if my {
+            [ly_m - c.y_m[1], ly_m - c.y_m[0]]
+        } else {
+            c.y_m
+        };
+        if let Some(q) = cells.iter().position(|k| {
+            same(k.x_m[0], x[0])
+                && same(k.x_m[1], x[1])
+                && same(k.y_m[0], y[0])
+                && same(k.y_m[1], y[1])
+        }) {
+            if q != r && twins.contains(&q) && !out.contains(&q) {
+                out.push(q);
+            }
+        }
+    }
+    out
+}
+
 /// `base` with the hypothesis applied: a global loss change on the plate and every patch, or
 /// one patch per cell with the plate's loss factor plus the cell's Δg (appended last, so they
 /// take precedence over existing patches there).
@@ -341,6 +379,23 @@ mod tests {
         assert_eq!(indistinguishable(&f, 0, 0.02), vec![3]);
         assert_eq!(indistinguishable(&f, 3, 0.02), vec![0]);
         assert!(indistinguishable(&f, 2, 0.02).is_empty());
+    }
+
+    #[test]
+    fn images_of_one_cell() {
+        let cells = cell_grid(2.0, 3.0, 4, 6);
+        let f = Mat::from_fn(3, cells.len(), |i, r| {
+            let c = cells[r];
+            let (dx, dy) = (
+                (c.x_m[0] + c.x_m[1] - 2.0).abs(),
+                (c.y_m[0] + c.y_m[1] - 3.0).abs(),
+            );
+            0.01 * (1.0 + i as f64) * (1.0 + dx) * (2.0 + dy * dy)
+        });
+        let mut im = cell_images(&cells, 18, &f, 2.0, 3.0);
+        im.sort_unstable();
+        // x 1.0–1.5, y 2.0–2.5 → x 0.5–1.0 (17), y 0.5–1.0 (6), both (5).
+        assert_eq!(im, vec![5, 6, 17]);
     }
 
     #[test]
