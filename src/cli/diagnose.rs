@@ -215,7 +215,21 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     model.output.sensors = SensorSpec::File { file: sensors_csv };
     model.output.fmax = 0.5 * fs;
     let sys = assemble(&model)?;
-    let modes = lowest_modes(&sys, ModeRequest::BelowHz(args.fmax_modes_hz))?;
+    // One eigen-solve serves both the simulations (modes below 1.5 fmax) and the comparison
+    // (modes below --fmax-modes-hz).
+    let fast_modes = lowest_modes(
+        &sys,
+        ModeRequest::BelowHz(args.fmax_modes_hz.max(1.5 * model.output.fmax)),
+    )?;
+    let n_compared = fast_modes
+        .frequencies_hz
+        .iter()
+        .filter(|f| **f < args.fmax_modes_hz)
+        .count();
+    let modes = Modes {
+        frequencies_hz: fast_modes.frequencies_hz[..n_compared].to_vec(),
+        shapes: fast_modes.shapes.subcols(0, n_compared).to_owned(),
+    };
     let keep: Vec<usize> = (0..modes.frequencies_hz.len())
         .filter(|&i| modes.frequencies_hz[i] > 0.5)
         .collect();
@@ -235,7 +249,6 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     );
     let recorded = per_mode_damping(&analyze_modes(set.source, &bands)?, &bands);
     let names: Vec<String> = set.sensors.iter().map(|s| s.id.clone()).collect();
-    let fast_modes = lowest_modes(&sys, ModeRequest::BelowHz(1.5 * model.output.fmax))?;
     let base_irs = impulse_responses(&model, &fast_modes)?;
     let simulated = measured_modes(&base_irs, fs, &names, &bands)?;
 
