@@ -3,15 +3,12 @@
 //! and show the fit improve — and say "no change" when there is nothing to find.
 //! (Reference plate, 0–250 Hz, 17 × 25 sensors, modes below 80 Hz, 4 × 6 candidate cells.)
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dampscope-diag-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use common::fresh_dir;
 
 fn model(dir: &Path, name: &str, loss: f64, extra: &str) -> PathBuf {
     let text = std::fs::read_to_string(concat!(
@@ -76,7 +73,7 @@ fn rms(out: &str) -> (f64, f64) {
 /// responses.
 #[test]
 fn finds_a_concealed_damping_patch() {
-    let dir = tmp("patch");
+    let dir = fresh_dir("diag-patch");
     let patch = "[[patch]]\nx = [1.125, 1.625]\ny = [1.875, 2.5]\nloss_factor = 0.10\n";
     let truth = model(&dir, "truth", 0.05, patch);
     let base = model(&dir, "base", 0.05, "");
@@ -99,7 +96,7 @@ fn finds_a_concealed_damping_patch() {
 
 #[test]
 fn finds_a_wrong_global_loss_factor() {
-    let dir = tmp("global");
+    let dir = fresh_dir("diag-global");
     let truth = model(&dir, "truth", 0.06, "");
     let base = model(&dir, "base", 0.05, "");
     let out = diagnose(&dir, &truth, &base);
@@ -117,7 +114,7 @@ fn finds_a_wrong_global_loss_factor() {
 
 #[test]
 fn invents_nothing_when_the_model_is_right() {
-    let dir = tmp("none");
+    let dir = fresh_dir("diag-none");
     let base = model(&dir, "base", 0.05, "");
     let out = diagnose(&dir, &base, &base);
     assert!(verdict(&out).contains("no change"), "{out}");

@@ -4,18 +4,11 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
-use common::{csv_rows, decaying_sines, rel_err};
+use common::{csv_rows, decaying_sines, fresh_dir, rel_err};
 use dampscope::source::{write_recording_set, write_wav_f32, DecayKind, RecordingMeta, Sensor};
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dampscope-maps-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn map(args: &[&str]) -> std::process::Output {
     Command::new(env!("CARGO_BIN_EXE_dampscope"))
@@ -61,7 +54,7 @@ fn known_set(dir: &Path) -> (Vec<Sensor>, Vec<Option<f64>>) {
 
 #[test]
 fn map_of_a_set_with_known_local_damping() {
-    let set = tmp("set");
+    let set = fresh_dir("maps-set");
     let (sensors, truth) = known_set(&set);
     let out = set.join("out");
     let o = map(&[
@@ -125,7 +118,7 @@ fn map_of_a_set_with_known_local_damping() {
 
 #[test]
 fn sensor_positions_from_a_file_or_an_error() {
-    let dir = tmp("wav");
+    let dir = fresh_dir("maps-wav");
     let fs = 2000.0;
     let chans: Vec<Vec<f64>> = [0.01, 0.02]
         .iter()

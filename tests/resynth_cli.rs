@@ -7,14 +7,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::csv_rows;
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("dampscope-resynth-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
+use common::{csv_rows, fresh_dir};
 
 fn dampscope(args: &[&str]) -> String {
     let o = Command::new(env!("CARGO_BIN_EXE_dampscope"))
@@ -67,7 +60,7 @@ fn global_csv(dir: &Path, d: f64) -> PathBuf {
 /// 2.5 % must give the model's own FRF back (ε < 1 %), and a 20 % low D must show in ε.
 #[test]
 fn the_true_damping_gives_the_model_back_and_a_wrong_one_does_not() {
-    let dir = tmp("homogeneous");
+    let dir = fresh_dir("resynth-homogeneous");
     let m = model(&dir, 250.0, "");
     let run = |d: f64, extra: &[&str]| {
         let out = dir.join(format!("out-{d}-{}", extra.len()));
@@ -128,7 +121,7 @@ fn the_true_damping_gives_the_model_back_and_a_wrong_one_does_not() {
 /// 200 Hz on.
 #[test]
 fn report_patch_plate_global_damping_and_resynthesis() {
-    let dir = tmp("patch");
+    let dir = fresh_dir("resynth-patch");
     let m = model(
         &dir,
         500.0,
