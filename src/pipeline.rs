@@ -12,6 +12,7 @@ use std::sync::Arc;
 use crossbeam_channel::{bounded, Receiver, Sender};
 
 use crate::decay::estimate::EstimateSettings;
+use crate::decay::leakage::{flag_leakage, BandLevel, LeakageModel};
 use crate::decay::{DecayEstimate, DecayEstimator, EvaluationRange, Flag, OnlineSchroeder};
 use crate::error::{Error, Result};
 use crate::frontend::onset::{OnsetDetector, OnsetEvent, OnsetSettings};
@@ -84,26 +85,56 @@ pub fn analyze_decay(
     front_end.process(samples, &mut |f: Frame<'_>| trackers.push(f));
     front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
     let cut_short = front_end.decay_cut_short();
-    trackers
-        .estimators
-        .iter()
-        .zip(front_end.bands())
-        .map(|(e, band)| {
-            let mut est = e.provisional();
-            flag_off_band(&mut est, band);
-            if cut_short {
-                est.flags.push(Flag::DecayTooLong);
-            }
-            est
-        })
-        .collect()
+    let mut estimates: Vec<DecayEstimate> =
+        trackers.estimators.iter().map(|e| e.provisional()).collect();
+    judge_bands(front_end, &trackers.estimators, &mut estimates);
+    if cut_short {
+        estimates
+            .iter_mut()
+            .for_each(|e| e.flags.push(Flag::DecayTooLong));
+    }
+    estimates
 }
 
-/// Raises [`Flag::OffBandDominant`] when the dominant frequency lies outside `band`.
-fn flag_off_band(est: &mut DecayEstimate, band: &Band) {
-    if let Some(f) = est.f_dominant_hz {
-        if f < band.lo_hz || f > band.hi_hz {
-            est.flags.push(Flag::OffBandDominant);
+/// A front end as the leakage test's model of its bands.
+struct FrontEndLeakage<'a>(&'a dyn FrontEnd);
+
+impl LeakageModel for FrontEndLeakage<'_> {
+    fn mode_gain(&self, b: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        self.0.mode_gain(b, f_hz, sigma_per_s)
+    }
+    fn flat_gain(&self, b: usize, lo_hz: f64, hi_hz: f64) -> f64 {
+        self.0.flat_gain(b, lo_hz, hi_hz)
+    }
+    fn tolerance_hz(&self) -> f64 {
+        self.0.frequency_tolerance_hz()
+    }
+}
+
+/// The tests across the bands of one decay: a band narrower than the front end resolves gives
+/// no number ([`Flag::BelowResolution`]), nor does a band whose decay is another band's
+/// ([`Flag::Leakage`], see [`crate::decay::leakage`]).
+fn judge_bands(
+    front_end: &dyn FrontEnd,
+    estimators: &[OnlineSchroeder],
+    estimates: &mut [DecayEstimate],
+) {
+    let resolution_hz = front_end.resolution().frequency_resolution_hz;
+    let levels: Vec<BandLevel> = front_end
+        .bands()
+        .iter()
+        .zip(estimators)
+        .map(|(b, e)| BandLevel {
+            lo_hz: b.lo_hz,
+            hi_hz: b.hi_hz,
+            center_hz: b.center_hz,
+            energy: e.total_energy(),
+        })
+        .collect();
+    flag_leakage(estimates, &levels, &FrontEndLeakage(front_end));
+    for (est, band) in estimates.iter_mut().zip(front_end.bands()) {
+        if band.width_hz() < resolution_hz * (1.0 - 1e-9) && !est.has(Flag::NoEnergy) {
+            est.withhold(Flag::BelowResolution);
         }
     }
 }
@@ -258,29 +289,28 @@ impl ChannelAnalyzer {
             return;
         }
         let cut_short = self.front_end.decay_cut_short();
-        let estimates: Vec<DecayEstimate> = self
+        let mut estimates: Vec<DecayEstimate> = self
             .trackers
             .estimators
             .iter()
             .zip(&self.band_in_range)
-            .zip(self.front_end.bands())
-            .map(|((e, &ok), band)| {
-                let mut est = if ok {
-                    let mut est = e.provisional();
-                    flag_off_band(&mut est, band);
-                    est
+            .map(|(e, &ok)| {
+                if ok {
+                    e.provisional()
                 } else {
                     DecayEstimate::failed(Flag::BandOutOfRange)
-                };
-                if truncated {
-                    est.flags.push(Flag::InputTruncated);
                 }
-                if cut_short {
-                    est.flags.push(Flag::DecayTooLong);
-                }
-                est
             })
             .collect();
+        judge_bands(&*self.front_end, &self.trackers.estimators, &mut estimates);
+        for est in &mut estimates {
+            if truncated {
+                est.flags.push(Flag::InputTruncated);
+            }
+            if cut_short {
+                est.flags.push(Flag::DecayTooLong);
+            }
+        }
         let onset_s = onset_index as f64 / self.sample_rate_hz;
         out.extend(self.rows_for(Some(onset_s), estimates));
         self.decays += 1;

@@ -60,11 +60,15 @@ fn octave(
     bands.into_iter().zip(est).collect()
 }
 
-/// `analytic_rir_rigid_walls.csv`: 44.1 kHz, T60 = 1 s by construction in every band, no
-/// noise. Every octave band from 63 Hz to 8 kHz carries enough energy (the analytic RIR's
-/// direct part is broadband; peak-to-tail > 80 dB in each band), so all are checked.
+/// `analytic_rir_rigid_walls.csv`: 44.1 kHz, T60 = 1 s by construction for every mode, no
+/// noise. The room (0.8 × 0.5 × 0.3 m, c = 343.9 m/s) has its first mode at 215 Hz and the
+/// modal sum stops at 1 kHz, so only the 250, 500 and 1000 Hz octaves hold modes: they are
+/// within 3 %. The 63, 125 and 2000–8000 Hz octaves hold nothing but the filter skirts of the
+/// modes around 215 Hz and 0.9 kHz (their band signals oscillate at those frequencies): they
+/// are flagged `leakage` and give no number. (Before the leakage test they reported 1 s, right
+/// by accident, because every mode of this room decays at the same rate.)
 #[test]
-fn rigid_walls_rir_t20_t30_within_3_percent_in_every_octave() {
+fn rigid_walls_rir_t20_t30_within_3_percent_where_modes_are_and_leakage_elsewhere() {
     let Some(text) = reference("analytic_rir_rigid_walls.csv") else {
         return;
     };
@@ -79,13 +83,30 @@ fn rigid_walls_rir_t20_t30_within_3_percent_in_every_octave() {
             let rows = octave(&x, 44_100.0, direction, range);
             assert_eq!(rows.len(), 8, "63 Hz … 8 kHz");
             for (band, e) in rows {
-                let t = e.t60_s.unwrap_or(f64::NAN);
-                assert!(
-                    rel_err(t, 1.0) < 0.03,
-                    "{direction:?} {range:?} {} Hz: T = {t}, flags {:?}",
-                    band.nominal_hz,
-                    e.flags
-                );
+                let modal = (250.0..=1000.0).contains(&band.nominal_hz);
+                if modal {
+                    let t = e.t60_s.unwrap_or(f64::NAN);
+                    assert!(
+                        rel_err(t, 1.0) < 0.03,
+                        "{direction:?} {range:?} {} Hz: T = {t}, flags {:?}",
+                        band.nominal_hz,
+                        e.flags
+                    );
+                } else {
+                    let f = e.f_dominant_hz.unwrap_or(f64::NAN);
+                    assert!(
+                        e.has(Flag::Leakage) && e.t60_s.is_none(),
+                        "{direction:?} {range:?} {} Hz: {:?}",
+                        band.nominal_hz,
+                        e
+                    );
+                    // What the band holds oscillates at the modes next to it.
+                    assert!(
+                        (200.0..1200.0).contains(&f),
+                        "{} Hz band: f_dominant {f}",
+                        band.nominal_hz
+                    );
+                }
             }
         }
     }

@@ -38,6 +38,9 @@ impl FrontEnd for Booby {
     fn name(&self) -> &'static str {
         "booby"
     }
+    fn mode_gain(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        self.0.mode_gain(band, f_hz, sigma_per_s)
+    }
 }
 
 #[test]

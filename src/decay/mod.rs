@@ -8,6 +8,7 @@
 
 pub mod damping;
 pub mod estimate;
+pub mod leakage;
 pub mod lundeby;
 pub mod range;
 pub mod regression;

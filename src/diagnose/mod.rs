@@ -22,7 +22,6 @@ pub mod nnls;
 
 use faer::Mat;
 
-use crate::decay::Flag;
 use crate::frontend::Band;
 use crate::pipeline::ResultRow;
 use crate::sim::assembly::assemble;
@@ -37,7 +36,7 @@ pub struct ModeDamping {
     pub median_d: Option<f64>,
     /// Its standard error, 1.2533 · std / √n.
     pub std_error: Option<f64>,
-    /// Sensors with an estimate (without `off_band_dominant`).
+    /// Sensors with an estimate (a band flagged `leakage` has none).
     pub n: usize,
 }
 
@@ -50,7 +49,6 @@ pub fn per_mode_damping(rows: &[ResultRow], bands: &[Band]) -> Vec<ModeDamping> 
             let mut d: Vec<f64> = rows
                 .iter()
                 .filter(|r| r.band == *band && r.decay == 0)
-                .filter(|r| !r.estimate.has(Flag::OffBandDominant))
                 .filter_map(|r| r.estimate.damping_ratio_corrected)
                 .collect();
             d.sort_by(f64::total_cmp);

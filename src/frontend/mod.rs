@@ -81,6 +81,73 @@ pub trait FrontEnd: Send {
 
     /// A short name for tables and logs (`stft`, `goyder`, `octave`).
     fn name(&self) -> &'static str;
+
+    /// Energy that band `band` receives from a mode at `f_hz` whose amplitude decays at
+    /// `sigma_per_s` (1/s), per unit of the mode's energy, in units shared by all bands of this
+    /// front end (only ratios between bands are used). The leakage test
+    /// ([`crate::decay::leakage`]) predicts with it what a strong band leaks into a weak one.
+    fn mode_gain(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64;
+
+    /// How far (Hz) the frequency a band reports may lie outside the band before it counts as
+    /// another band's: half a bin for the STFT (a bin holds what lies within it), 0 for a filter.
+    fn frequency_tolerance_hz(&self) -> f64 {
+        0.0
+    }
+
+    /// Mean of [`FrontEnd::mode_gain`] (stationary, σ = 0) of band `band` over `lo_hz..hi_hz`:
+    /// what the band receives from content spread evenly over that range (a diffuse band of a
+    /// room response, where a tone at the band's dominant frequency would be the wrong model).
+    fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
+        const POINTS: usize = 33;
+        if !(hi_hz > lo_hz) {
+            return self.mode_gain(band, lo_hz, 0.0);
+        }
+        // Simpson's rule on a grid fine against the band's own skirts.
+        let h = (hi_hz - lo_hz) / (POINTS - 1) as f64;
+        let sum: f64 = (0..POINTS)
+            .map(|i| {
+                let w = if i == 0 || i == POINTS - 1 {
+                    1.0
+                } else if i % 2 == 1 {
+                    4.0
+                } else {
+                    2.0
+                };
+                w * self.mode_gain(band, lo_hz + i as f64 * h, 0.0)
+            })
+            .sum();
+        sum * h / 3.0 / (hi_hz - lo_hz)
+    }
+}
+
+/// |Π sections(z)|² of a cascade of biquads `(b0 + b1 z⁻¹ + b2 z⁻²) / (1 + a1 z⁻¹ + a2 z⁻²)`
+/// at z⁻¹ = `z_inv` (a complex point, so that a decaying or growing mode can be evaluated).
+pub(crate) fn cascade_power(
+    sections: impl IntoIterator<Item = [f64; 5]>,
+    z_inv: rustfft::num_complex::Complex<f64>,
+) -> f64 {
+    let z2 = z_inv * z_inv;
+    sections
+        .into_iter()
+        .map(|[b0, b1, b2, a1, a2]| {
+            let num = b0 + z_inv * b1 + z2 * b2;
+            let den = 1.0 + z_inv * a1 + z2 * a2;
+            (num / den).norm_sqr()
+        })
+        .product()
+}
+
+/// z⁻¹ = e^{−(σ_f + j2πf)/fs} at which a filter sees a mode at `f_hz` decaying at `sigma_per_s`:
+/// in recording order the mode decays (σ_f = −σ); filtered backwards it grows (σ_f = +σ).
+pub(crate) fn mode_z_inv(
+    f_hz: f64,
+    sigma_per_s: f64,
+    reversed: bool,
+    fs_hz: f64,
+) -> rustfft::num_complex::Complex<f64> {
+    let sigma_f = if reversed { sigma_per_s } else { -sigma_per_s };
+    rustfft::num_complex::Complex::new(-sigma_f / fs_hz, -2.0 * std::f64::consts::PI * f_hz / fs_hz)
+        .exp()
 }
 
 /// Checks the settings that the buffering filter banks (Goyder, octave) share: frame period in ms

@@ -166,19 +166,31 @@ impl StftFrontEnd {
             let powers = &self.power[bb.first_bin..bb.first_bin + bb.weights.len()];
             let mut e = 0.0;
             let mut best = (0.0, usize::MAX);
+            let (mut first, mut last) = (usize::MAX, 0);
             for (i, (&p, &wt)) in powers.iter().zip(&bb.weights).enumerate() {
                 e += wt * p;
-                if wt > 0.0 && p > best.0 {
-                    best = (p, bb.first_bin + i);
+                if wt > 0.0 {
+                    first = first.min(bb.first_bin + i);
+                    last = bb.first_bin + i;
+                    if p > best.0 {
+                        best = (p, bb.first_bin + i);
+                    }
                 }
             }
             self.energy[k] = e;
+            // A maximum on the band's edge with more power outside is the skirt of a peak
+            // outside the band: follow it uphill, so that the frame reports the frequency that
+            // carries the band's energy (and the leakage test sees it off-band).
+            let mut peak = best.1;
+            if peak != usize::MAX && (peak == first || peak == last) {
+                peak = climb(&self.power, peak);
+            }
             // Below bin 2 the mirror image at −f overlaps the Hann main lobe (±2 bins): the
             // window holds less than two periods and the peak position is not the frequency.
-            self.frequency_hz[k] = if best.1 == usize::MAX || best.1 < 2 * self.zero_pad {
+            self.frequency_hz[k] = if peak == usize::MAX || peak < 2 * self.zero_pad {
                 f64::NAN
             } else {
-                peak_frequency(&self.power, best.1) * self.bin_hz
+                peak_frequency(&self.power, peak) * self.bin_hz
             };
         }
         sink.frame(Frame {
@@ -224,6 +236,37 @@ fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
         first_bin: lo_bin,
         weights,
     }
+}
+
+/// The local maximum of `power` reached from bin `k` by walking uphill.
+fn climb(power: &[f64], mut k: usize) -> usize {
+    loop {
+        if k > 0 && power[k - 1] > power[k] {
+            k -= 1;
+        } else if k + 1 < power.len() && power[k + 1] > power[k] {
+            k += 1;
+        } else {
+            return k;
+        }
+    }
+}
+
+/// Σ_{n<N} e^{c n} = (1 − e^{cN}) / (1 − e^c) (N when c → 0).
+fn geometric_sum(c: Complex<f64>, n: f64) -> Complex<f64> {
+    let den = Complex::new(1.0, 0.0) - c.exp();
+    if den.norm() < 1e-12 {
+        Complex::new(n, 0.0)
+    } else {
+        (Complex::new(1.0, 0.0) - (c * n).exp()) / den
+    }
+}
+
+/// DTFT at θ (rad/sample) of the periodic Hann window of length `n` times e^{−a m}
+/// (a decaying mode seen through one frame): 0.5 S(−a−jθ) − 0.25 S(−a−j(θ∓2π/n)).
+fn decaying_hann_dtft(theta: f64, a: f64, n: f64) -> Complex<f64> {
+    let step = 2.0 * std::f64::consts::PI / n;
+    let s = |t: f64| geometric_sum(Complex::new(-a, -t), n);
+    0.5 * s(theta) - 0.25 * s(theta - step) - 0.25 * s(theta + step)
 }
 
 /// Fractional bin of the spectral peak at integer bin `k`: parabola through the log powers of
@@ -281,6 +324,31 @@ impl FrontEnd for StftFrontEnd {
 
     fn name(&self) -> &'static str {
         "stft"
+    }
+
+    fn mode_gain(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        // Every frame sees the mode through the same decaying window (up to a scale), so one
+        // frame's band energy is the gain: Σ_bins w |G(θ_bin ∓ ω)|² over both images of the
+        // real mode.
+        let bb = &self.band_bins[band];
+        let n = self.window.len() as f64;
+        let a = sigma_per_s / self.sample_rate_hz;
+        let w = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
+        let bin_rad = 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz;
+        bb.weights
+            .iter()
+            .enumerate()
+            .filter(|(_, wt)| **wt > 0.0)
+            .map(|(i, wt)| {
+                let theta = (bb.first_bin + i) as f64 * bin_rad;
+                wt * (decaying_hann_dtft(theta - w, a, n).norm_sqr()
+                    + decaying_hann_dtft(theta + w, a, n).norm_sqr())
+            })
+            .sum()
+    }
+
+    fn frequency_tolerance_hz(&self) -> f64 {
+        0.5 * self.sample_rate_hz / self.window.len() as f64
     }
 }
 

@@ -52,6 +52,14 @@ pub fn butterworth_allpole(order: usize, fc_hz: f64, fs_hz: f64) -> Vec<[f64; 2]
         .collect()
 }
 
+/// A band's heterodyne frequency (its arithmetic middle, Hz) and its low-pass sections.
+pub(super) fn band_design(band: &Band, order: usize, fs_hz: f64) -> (f64, Vec<[f64; 2]>) {
+    let f_h = 0.5 * (band.lo_hz + band.hi_hz);
+    // Bands beyond Nyquist are flagged by the pipeline; keep the design well-defined.
+    let fc = (0.5 * band.width_hz()).min(0.45 * fs_hz);
+    (f_h, butterworth_allpole(order, fc, fs_hz))
+}
+
 #[inline(always)]
 fn splat<const L: usize>(x: f64) -> Lanes<L> {
     [x; L]
@@ -307,10 +315,7 @@ impl Kernel {
             isa,
         };
         for (b, band) in bands.iter().enumerate() {
-            let f_h = 0.5 * (band.lo_hz + band.hi_hz);
-            // Bands beyond Nyquist are flagged by the pipeline; keep the design well-defined.
-            let fc = (0.5 * band.width_hz()).min(0.45 * fs_hz);
-            let sections = butterworth_allpole(order, fc, fs_hz);
+            let (f_h, sections) = band_design(band, order, fs_hz);
             let dc_gain: f64 = sections.iter().map(|[c1, c2]| 1.0 - c1 - c2).product();
             let w = -2.0 * std::f64::consts::PI * f_h / fs_hz;
             match kernel.slot(b) {

@@ -27,7 +27,7 @@
 mod kernel;
 
 pub use kernel::butterworth_allpole;
-use kernel::{Kernel, RESYNC_SAMPLES};
+use kernel::{band_design, Kernel, RESYNC_SAMPLES};
 
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
 use crate::error::{Error, Result};
@@ -85,6 +85,9 @@ pub struct GoyderFrontEnd {
     buffer: Vec<f64>,
     overflowed: bool,
     kernel: Kernel,
+    /// Per band: heterodyne frequency (Hz) and low-pass sections as `[b0, b1, b2, a1, a2]`
+    /// with the DC gain in b0 (for [`FrontEnd::mode_gain`]).
+    designs: Vec<(f64, Vec<[f64; 5]>)>,
 }
 
 impl GoyderFrontEnd {
@@ -132,6 +135,17 @@ impl GoyderFrontEnd {
             buffer: Vec::new(),
             overflowed: false,
             kernel: Kernel::new(bands, settings.order, sample_rate_hz),
+            designs: bands
+                .iter()
+                .map(|b| {
+                    let (f_h, sections) = band_design(b, settings.order, sample_rate_hz);
+                    let biquads = sections
+                        .iter()
+                        .map(|&[c1, c2]| [1.0 - c1 - c2, 0.0, 0.0, -c1, -c2])
+                        .collect();
+                    (f_h, biquads)
+                })
+                .collect(),
         })
     }
 
@@ -268,5 +282,18 @@ impl FrontEnd for GoyderFrontEnd {
 
     fn name(&self) -> &'static str {
         "goyder"
+    }
+
+    fn mode_gain(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        // The band shifts f_h to 0 Hz and low-passes: a real mode at ±f arrives at ±f − f_h.
+        let (f_h, sections) = &self.designs[band];
+        let reversed = self.settings.direction == FilterDirection::Reversed;
+        [f_hz - f_h, -f_hz - f_h]
+            .iter()
+            .map(|&df| {
+                let z_inv = super::mode_z_inv(df, sigma_per_s, reversed, self.sample_rate_hz);
+                super::cascade_power(sections.iter().copied(), z_inv)
+            })
+            .sum()
     }
 }

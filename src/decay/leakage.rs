@@ -1,0 +1,225 @@
+//! Is the decay in a band its own? The test that runs across the bands of one decay.
+//!
+//! A band can hold a clean, confident-looking decay that belongs to a mode outside it: the
+//! mode's spectral skirt (window side lobes, filter skirts) reaches into the band and decays at
+//! the mode's rate. Such a band reports the wrong mode's decay at the wrong frequency. Three
+//! tests find it, each from what the front end knows about its own bands:
+//!
+//! 1. **Off-band frequency.** The frequency carrying the band's energy (f_dominant, from the
+//!    band signal) lies outside the band, by more than the front end's frequency uncertainty.
+//! 2. **Level against leakage.** Bands are visited from the strongest down. Each band that owns
+//!    its decay becomes a source; a weaker band's energy must exceed what the sources leak into
+//!    it by [`LEAKAGE_MARGIN_DB`]. A source is modelled as a mode at its dominant frequency,
+//!    `E_s · G_b(f_s, σ_s) / G_s(f_s, σ_s)` with G the front end's energy gain for a decaying
+//!    mode ([`crate::frontend::FrontEnd::mode_gain`]), or, whichever predicts less, as content
+//!    spread evenly over the source band ([`crate::frontend::FrontEnd::flat_gain`]): a room's
+//!    octave band is not one tone, and a tone near its edge would overstate what it leaks.
+//! 3. **Numerical floor.** A band more than [`NUMERICAL_FLOOR_DB`] below the strongest holds
+//!    rounding noise of the strong bands.
+//!
+//! A flagged band keeps its quality figures and f_dominant (they show where its energy comes
+//! from) but reports no decay time and no damping.
+
+use super::estimate::{DecayEstimate, Flag, LEAKAGE_MARGIN_DB, NUMERICAL_FLOOR_DB};
+
+/// One band of a decay as the leakage test sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BandLevel {
+    /// Lower and upper edge, Hz.
+    pub lo_hz: f64,
+    /// Upper edge, Hz.
+    pub hi_hz: f64,
+    /// Centre, Hz (the frequency assumed for the band's content when f_dominant is unknown).
+    pub center_hz: f64,
+    /// Energy of the band over the decay (the Schroeder curve's start), front-end units.
+    pub energy: f64,
+}
+
+/// Amplitude decay rate σ (1/s) of a decay with reverberation time `t60_s`: e^{−σ T60} = 10⁻³.
+pub fn sigma_from_t60(t60_s: f64) -> f64 {
+    3.0 * std::f64::consts::LN_10 / t60_s
+}
+
+/// What the leakage test needs to know of the front end.
+pub trait LeakageModel {
+    /// Energy gain of band `b` for a mode at `f_hz` decaying at `sigma_per_s`.
+    fn mode_gain(&self, b: usize, f_hz: f64, sigma_per_s: f64) -> f64;
+    /// Mean stationary gain of band `b` over `lo_hz..hi_hz`.
+    fn flat_gain(&self, b: usize, lo_hz: f64, hi_hz: f64) -> f64;
+    /// How far outside its band a band's f_dominant may lie before it counts as off-band.
+    fn tolerance_hz(&self) -> f64;
+}
+
+/// Applies the three tests to the estimates of one decay (one per band, same order as `bands`).
+pub fn flag_leakage(estimates: &mut [DecayEstimate], bands: &[BandLevel], model: &dyn LeakageModel) {
+    let tolerance_hz = model.tolerance_hz();
+    let n = estimates.len().min(bands.len());
+    let margin = 10f64.powf(LEAKAGE_MARGIN_DB / 10.0);
+    let floor = 10f64.powf(-NUMERICAL_FLOOR_DB / 10.0);
+    let off_band = |k: usize| {
+        estimates[k].f_dominant_hz.is_some_and(|f| {
+            f < bands[k].lo_hz - tolerance_hz || f > bands[k].hi_hz + tolerance_hz
+        })
+    };
+    let mut leaking = vec![false; n];
+    for (k, l) in leaking.iter_mut().enumerate() {
+        *l = off_band(k);
+    }
+    let mut order: Vec<usize> = (0..n)
+        .filter(|&k| bands[k].energy.is_finite() && bands[k].energy > 0.0)
+        .collect();
+    order.sort_by(|&a, &b| bands[b].energy.total_cmp(&bands[a].energy).then(a.cmp(&b)));
+    let e_max = order.first().map_or(0.0, |&k| bands[k].energy);
+    // Sources: (band, its frequency, σ, energy / own gain).
+    let mut sources: Vec<(usize, f64, f64, f64)> = Vec::new();
+    for &b in &order {
+        let e = bands[b].energy;
+        if e < e_max * floor {
+            leaking[b] = true;
+            continue;
+        }
+        let leaked: f64 = sources
+            .iter()
+            .map(|&(_, f, sigma, scale)| scale * model.mode_gain(b, f, sigma))
+            .sum();
+        // Only a band the tone model condemns pays for the flat model's integrals.
+        if e <= margin * leaked {
+            let flat: f64 = sources
+                .iter()
+                .map(|&(s, f, sigma, scale)| {
+                    let tone = scale * model.mode_gain(b, f, sigma);
+                    let (lo, hi) = (bands[s].lo_hz, bands[s].hi_hz);
+                    let own = model.flat_gain(s, lo, hi);
+                    let spread = if own > 0.0 {
+                        bands[s].energy * model.flat_gain(b, lo, hi) / own
+                    } else {
+                        tone
+                    };
+                    tone.min(spread)
+                })
+                .sum();
+            leaking[b] = e <= margin * flat;
+        }
+        if leaking[b] {
+            continue;
+        }
+        let f = estimates[b]
+            .f_dominant_hz
+            .filter(|f| f.is_finite() && *f > 0.0)
+            .unwrap_or(bands[b].center_hz);
+        let sigma = estimates[b].t60_s.map_or(0.0, sigma_from_t60);
+        let own = model.mode_gain(b, f, sigma);
+        if own > 0.0 && own.is_finite() {
+            sources.push((b, f, sigma, e / own));
+        }
+    }
+    for (est, leak) in estimates.iter_mut().zip(leaking) {
+        if leak && !est.has(Flag::NoEnergy) {
+            est.withhold(Flag::Leakage);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn est(f: f64, t60: f64) -> DecayEstimate {
+        DecayEstimate {
+            t60_s: Some(t60),
+            damping_ratio: Some(0.01),
+            f_dominant_hz: Some(f),
+            ..Default::default()
+        }
+    }
+
+    fn band(lo: f64, hi: f64, energy: f64) -> BandLevel {
+        BandLevel {
+            lo_hz: lo,
+            hi_hz: hi,
+            center_hz: 0.5 * (lo + hi),
+            energy,
+        }
+    }
+
+    /// A toy front end: every band passes 1 at its centre and 10^(−distance/10 Hz) elsewhere;
+    /// its flat gain is the gain at the middle of the range (or a constant).
+    struct Toy<'a> {
+        bands: &'a [BandLevel],
+        flat: Option<f64>,
+        tolerance_hz: f64,
+    }
+
+    impl LeakageModel for Toy<'_> {
+        fn mode_gain(&self, b: usize, f: f64, _: f64) -> f64 {
+            10f64.powf(-(f - self.bands[b].center_hz).abs() / 10.0)
+        }
+        fn flat_gain(&self, b: usize, lo: f64, hi: f64) -> f64 {
+            let own = self.bands[b].lo_hz == lo && self.bands[b].hi_hz == hi;
+            match self.flat {
+                Some(g) if !own => g,
+                _ => self.mode_gain(b, 0.5 * (lo + hi), 0.0),
+            }
+        }
+        fn tolerance_hz(&self) -> f64 {
+            self.tolerance_hz
+        }
+    }
+
+    fn toy(bands: &[BandLevel]) -> Toy<'_> {
+        Toy {
+            bands,
+            flat: None,
+            tolerance_hz: 0.0,
+        }
+    }
+
+    #[test]
+    fn a_weak_band_explained_by_its_neighbours_leakage_is_flagged() {
+        // Band 1's energy (1e-3) is what band 0's mode at 50 Hz leaks into it (gain 1e-3).
+        let bands = [band(45.0, 55.0, 1.0), band(75.0, 85.0, 1e-3)];
+        let mut e = vec![est(50.0, 1.0), est(80.0, 1.0)];
+        flag_leakage(&mut e, &bands, &toy(&bands));
+        assert!(!e[0].has(Flag::Leakage));
+        assert!(e[1].has(Flag::Leakage) && e[1].t60_s.is_none());
+        // Twenty times more energy of its own: it stands.
+        let bands = [band(45.0, 55.0, 1.0), band(75.0, 85.0, 2e-2)];
+        let mut e = vec![est(50.0, 1.0), est(80.0, 1.0)];
+        flag_leakage(&mut e, &bands, &toy(&bands));
+        assert!(!e[1].has(Flag::Leakage), "{:?}", e[1]);
+    }
+
+    #[test]
+    fn a_source_spread_over_its_band_leaks_less_than_a_tone_at_its_edge() {
+        // Band 0's content at 54 Hz, 21 Hz from band 1's centre: the tone model predicts
+        // 1e-2.1 of it in band 1 (more than band 1's 5e-3 allows); spread evenly over band 0
+        // (flat gain 1e-4 against its own 1) it predicts 1e-4: band 1 stands (37 dB above).
+        let bands = [band(45.0, 55.0, 1.0), band(70.0, 80.0, 5e-3)];
+        let mut e = vec![est(54.0, 1.0), est(75.0, 1.0)];
+        flag_leakage(&mut e, &bands, &toy(&bands));
+        assert!(e[1].has(Flag::Leakage), "tone model alone");
+        let flat = Toy {
+            flat: Some(1e-4),
+            ..toy(&bands)
+        };
+        let mut e = vec![est(54.0, 1.0), est(75.0, 1.0)];
+        flag_leakage(&mut e, &bands, &flat);
+        assert!(!e[1].has(Flag::Leakage), "{:?}", e[1]);
+    }
+
+    #[test]
+    fn off_band_frequency_and_numerical_floor() {
+        let bands = [band(45.0, 55.0, 1.0), band(175.0, 185.0, 1e-11)];
+        let mut e = vec![est(56.0, 1.0), est(180.0, 1.0)];
+        flag_leakage(&mut e, &bands, &toy(&bands));
+        assert!(e[0].has(Flag::Leakage), "56 Hz is outside 45–55 Hz");
+        assert!(e[1].has(Flag::Leakage), "110 dB below the strongest band");
+        let mut e = vec![est(56.0, 1.0), est(180.0, 1.0)];
+        let tolerant = Toy {
+            tolerance_hz: 2.5,
+            ..toy(&bands)
+        };
+        flag_leakage(&mut e, &bands[..1], &tolerant);
+        assert!(!e[0].has(Flag::Leakage), "within the tolerance");
+    }
+}
