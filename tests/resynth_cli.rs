@@ -117,8 +117,12 @@ fn the_true_damping_gives_the_model_back_and_a_wrong_one_does_not() {
 /// fmax = 500 Hz), simulate → map → resynth on a 17 × 25 sensor grid (every other node).
 /// The report: the global D lies below the modes' numerical D in every band (Fig. 4.10), and
 /// the re-synthesised FRF is off by up to 25 %, less at higher frequencies (Fig. 4.12).
-/// Measured: global D 1.50 → 2.59 % against 2.6 %; driving-point ε 22 % at 50 Hz, 3–8 % from
-/// 200 Hz on.
+/// Since nodes whose band energy is a neighbour's leakage (a 20 ms window spreads each mode
+/// ±100 Hz) give no number, the global D holds the report's shortfall where it is large
+/// (1.55, 1.97, 2.20, 2.33 % against 2.6 % below 225 Hz) and comes within a few per cent of the
+/// modes above (2.43–2.73 %; the 350 Hz band reads 4 % high: the kept nodes are those where
+/// the band's upper modes dominate, and D = 1.1/(T60 f_c) uses the centre frequency).
+/// Measured: driving-point ε 20 % at 50 Hz, 1.4–3.2 % from 250 Hz on.
 #[test]
 fn report_patch_plate_global_damping_and_resynthesis() {
     let dir = fresh_dir("resynth-patch");
@@ -153,9 +157,13 @@ fn report_patch_plate_global_damping_and_resynthesis() {
     ]);
     let bands = csv_rows(&out.join("resynth.csv"));
     assert_eq!(bands.len(), 8);
-    for b in &bands {
+    for (k, b) in bands.iter().enumerate() {
         let (g, model) = (num(b, "d_global"), num(b, "d_model_mean"));
-        assert!(g < model, "global {g} must lie below the modes' {model}");
+        if k < 4 {
+            assert!(g < 0.95 * model, "global {g} must lie below the modes' {model}");
+        } else {
+            assert!((g / model - 1.0).abs() < 0.08, "global {g} against the modes' {model}");
+        }
         assert!(num(b, "eps_driving_point") < 0.30, "{b:?}");
     }
     let eps: Vec<f64> = bands.iter().map(|b| num(b, "eps_driving_point")).collect();

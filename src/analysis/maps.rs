@@ -33,7 +33,7 @@ pub struct MapNode {
     pub damping_ratio_corrected: Option<f64>,
     /// Flags of the estimate (empty when the sensor had no row).
     pub flags: Vec<Flag>,
-    /// Why `damping_ratio` is missing: the first flag of the estimate, or [`NO_DECAY_FOUND`].
+    /// Why `damping_ratio` is missing: [`crate::decay::DecayEstimate::missing_reason`], or [`NO_DECAY_FOUND`].
     pub missing_reason: Option<String>,
 }
 
@@ -170,15 +170,7 @@ pub fn band_maps(
                 node.damping_ratio = e.damping_ratio;
                 node.damping_ratio_corrected = e.damping_ratio_corrected;
                 node.flags = e.flags.clone();
-                node.missing_reason = match e.damping_ratio {
-                    Some(_) => None,
-                    None => Some(
-                        e.flags
-                            .first()
-                            .map(|f| f.as_str().to_string())
-                            .unwrap_or_else(|| "no_estimate".to_string()),
-                    ),
-                };
+                node.missing_reason = e.missing_reason().map(str::to_string);
             }
             BandMap { band, nodes }
         })
@@ -299,6 +291,8 @@ mod tests {
             row("s1", b1, 0, Some(0.03), vec![Flag::NonlinearDecay]),
             row("s2", b1, 0, None, vec![Flag::TooFewFrames]),
             row("s3", b1, 0, Some(0.02), vec![]),
+            // The reason is the withholding flag, not a qualifying one raised before it.
+            row("s4", b1, 0, None, vec![Flag::NoiseCompensated, Flag::Leakage]),
             // A second decay of s3 is not the map's decay 0.
             row("s3", b1, 1, Some(0.5), vec![]),
             row("s0", b2, 0, Some(0.02), vec![]),
@@ -307,12 +301,13 @@ mod tests {
         assert_eq!(maps.len(), 2);
         let g = maps[0].global();
         assert_eq!((g.n_nodes, g.n_estimated), (5, 3));
+        assert_eq!(maps[0].nodes[4].missing_reason.as_deref(), Some("leakage"));
         assert!((g.mean_d.unwrap() - 0.02).abs() < 1e-15);
         assert!((g.mean_d_corrected.unwrap() - 0.018).abs() < 1e-15);
         assert_eq!(g.median_d, Some(0.02));
         assert!((g.std_d.unwrap() - 0.01).abs() < 1e-15);
         assert_eq!((g.min_d, g.max_d), (Some(0.01), Some(0.03)));
-        assert_eq!(g.missing, "no_decay_found:1;too_few_frames:1");
+        assert_eq!(g.missing, "leakage:1;too_few_frames:1");
         let g2 = maps[1].global();
         assert_eq!((g2.n_estimated, g2.mean_d), (1, Some(0.02)));
         assert_eq!(g2.std_d, None);

@@ -59,6 +59,18 @@ pub enum Flag {
 }
 
 impl Flag {
+    /// True for the flags that explain a missing number (as opposed to the ones that only
+    /// qualify a number that stands, such as `noise_compensated` or `nonlinear_decay`).
+    pub fn withholds(&self) -> bool {
+        !matches!(
+            self,
+            Flag::NonlinearDecay
+                | Flag::TruncationBias
+                | Flag::NoiseCompensated
+                | Flag::DecayTooLong
+        )
+    }
+
     /// The flag as it appears in tables.
     pub fn as_str(&self) -> &'static str {
         match self {
@@ -206,6 +218,22 @@ impl DecayEstimate {
         if !self.has(flag) {
             self.flags.push(flag);
         }
+    }
+
+    /// Why the estimate has no damping ratio: the first flag that withholds one (not a
+    /// qualifying flag such as `noise_compensated` that happened to be raised first), or
+    /// `None` when the number stands.
+    pub fn missing_reason(&self) -> Option<&'static str> {
+        if self.damping_ratio.is_some() {
+            return None;
+        }
+        Some(
+            self.flags
+                .iter()
+                .find(|f| f.withholds())
+                .or(self.flags.first())
+                .map_or("no_estimate", Flag::as_str),
+        )
     }
 
     /// True when the estimate carries a reverberation time (no flag withheld it).
