@@ -160,9 +160,15 @@ fn report_patch_plate_global_damping_and_resynthesis() {
     for (k, b) in bands.iter().enumerate() {
         let (g, model) = (num(b, "d_global"), num(b, "d_model_mean"));
         if k < 4 {
-            assert!(g < 0.95 * model, "global {g} must lie below the modes' {model}");
+            assert!(
+                g < 0.95 * model,
+                "global {g} must lie below the modes' {model}"
+            );
         } else {
-            assert!((g / model - 1.0).abs() < 0.08, "global {g} against the modes' {model}");
+            assert!(
+                (g / model - 1.0).abs() < 0.08,
+                "global {g} against the modes' {model}"
+            );
         }
         assert!(num(b, "eps_driving_point") < 0.30, "{b:?}");
     }

@@ -264,6 +264,7 @@ mod tests {
 
     fn row(ch: &str, band: Band, decay: usize, d: Option<f64>, flags: Vec<Flag>) -> ResultRow {
         ResultRow {
+            position_sample: 0,
             channel: ch.into(),
             decay,
             onset_s: Some(0.0),
@@ -292,7 +293,13 @@ mod tests {
             row("s2", b1, 0, None, vec![Flag::TooFewFrames]),
             row("s3", b1, 0, Some(0.02), vec![]),
             // The reason is the withholding flag, not a qualifying one raised before it.
-            row("s4", b1, 0, None, vec![Flag::NoiseCompensated, Flag::Leakage]),
+            row(
+                "s4",
+                b1,
+                0,
+                None,
+                vec![Flag::NoiseCompensated, Flag::Leakage],
+            ),
             // A second decay of s3 is not the map's decay 0.
             row("s3", b1, 1, Some(0.5), vec![]),
             row("s0", b2, 0, Some(0.02), vec![]),

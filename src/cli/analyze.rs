@@ -88,6 +88,10 @@ pub struct PipelineArgs {
     /// After a decay ends, a sample within this many dB of its peak starts the next one.
     #[arg(long, default_value_t = 20.0)]
     pub retrigger_db: f64,
+    /// During a decay, a sample that rises this many dB above the signal before it (and is
+    /// within --retrigger-db of the peak) is a new hit and starts a new decay; `inf` never splits.
+    #[arg(long, default_value_t = pipeline::DEFAULT_RETRIGGER_JUMP_DB, value_name = "DB")]
+    pub retrigger_jump_db: f64,
 }
 
 /// Options of `dampscope analyze`.
@@ -175,12 +179,18 @@ pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Resu
             "invalid setting --max-decay-s: expected > 0, got {s}"
         );
     }
+    anyhow::ensure!(
+        args.retrigger_jump_db > 0.0,
+        "invalid setting --retrigger-jump-db: expected > 0 dB, got {}",
+        args.retrigger_jump_db
+    );
     let config = AnalysisConfig {
         estimate: args.bands.estimate()?,
         onset_level_db: args.onset_level_db,
         max_decay_s: args.max_decay_s,
         end_drop_db: args.end_drop_db,
         retrigger_db: args.retrigger_db,
+        retrigger_jump_db: args.retrigger_jump_db,
         ..Default::default()
     };
     Ok(PreparedRun {

@@ -29,7 +29,8 @@ pub enum Flag {
     NonlinearDecay,
     /// The record ends less than 10 dB below the lower limit, so the end of the curve bends down.
     TruncationBias,
-    /// The channel contained NaN or infinite samples; nothing from it is reported.
+    /// The channel contained NaN or infinite samples (or an empty CSV cell): from the first of
+    /// them on nothing more is reported (decays that ended before it stand).
     NonFiniteInput,
     /// The input ended in the middle of a sample frame or before the length its header announced.
     InputTruncated,
@@ -45,6 +46,10 @@ pub enum Flag {
     /// |C| above [`EstimateSettings::max_curvature_pct`] (merged hits, noise, several modes of
     /// very different decay). No number is given.
     PoorFit,
+    /// The decay holds a new hit (its band energy restarts, see [`crate::decay::restarts`]):
+    /// the Schroeder curve sums several decays. No number is given; split the stream
+    /// (`--retrigger-jump-db`) or cut the record.
+    MergedHits,
     /// A noise floor was found; the curve was truncated at Lundeby's intersection time and its
     /// tail compensated (ISO 3382 practice).
     NoiseCompensated,
@@ -88,6 +93,7 @@ impl Flag {
             Flag::Leakage => "leakage",
             Flag::BelowResolution => "below_resolution",
             Flag::PoorFit => "poor_fit",
+            Flag::MergedHits => "merged_hits",
             Flag::DecayTooLong => "decay_too_long",
             Flag::InternalError => "internal_error",
         }

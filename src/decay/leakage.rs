@@ -51,15 +51,19 @@ pub trait LeakageModel {
 }
 
 /// Applies the three tests to the estimates of one decay (one per band, same order as `bands`).
-pub fn flag_leakage(estimates: &mut [DecayEstimate], bands: &[BandLevel], model: &dyn LeakageModel) {
+pub fn flag_leakage(
+    estimates: &mut [DecayEstimate],
+    bands: &[BandLevel],
+    model: &dyn LeakageModel,
+) {
     let tolerance_hz = model.tolerance_hz();
     let n = estimates.len().min(bands.len());
     let margin = 10f64.powf(LEAKAGE_MARGIN_DB / 10.0);
     let floor = 10f64.powf(-NUMERICAL_FLOOR_DB / 10.0);
     let off_band = |k: usize| {
-        estimates[k].f_dominant_hz.is_some_and(|f| {
-            f < bands[k].lo_hz - tolerance_hz || f > bands[k].hi_hz + tolerance_hz
-        })
+        estimates[k]
+            .f_dominant_hz
+            .is_some_and(|f| f < bands[k].lo_hz - tolerance_hz || f > bands[k].hi_hz + tolerance_hz)
     };
     let mut leaking = vec![false; n];
     for (k, l) in leaking.iter_mut().enumerate() {

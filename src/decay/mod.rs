@@ -12,6 +12,7 @@ pub mod leakage;
 pub mod lundeby;
 pub mod range;
 pub mod regression;
+pub mod restarts;
 pub mod schroeder;
 
 pub use estimate::{DecayEstimate, Flag};

@@ -99,7 +99,8 @@ pub trait FrontEnd: Send {
     /// room response, where a tone at the band's dominant frequency would be the wrong model).
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         const POINTS: usize = 33;
-        if !(hi_hz > lo_hz) {
+        // Also catches NaN limits.
+        if hi_hz.partial_cmp(&lo_hz) != Some(std::cmp::Ordering::Greater) {
             return self.mode_gain(band, lo_hz, 0.0);
         }
         // Simpson's rule on a grid fine against the band's own skirts.

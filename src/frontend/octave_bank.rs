@@ -391,7 +391,7 @@ mod tests {
         let x: Vec<f64> = (0..16000)
             .map(|i| {
                 let t = i as f64 / fs;
-                (-1.0 * t).exp() * (2.0 * std::f64::consts::PI * 55.0 * t).sin()
+                (-t).exp() * (2.0 * std::f64::consts::PI * 55.0 * t).sin()
             })
             .collect();
         let bands = [

@@ -1,0 +1,75 @@
+//! Restarts inside one band's decay: a new hit folded into the decay (the stream was not split
+//! there), which makes its Schroeder curve the sum of several decays.
+//!
+//! A restart is a frame k whose energy is at least [`RESTART_JUMP_DB`] above every frame from
+//! k − 2g to k − g, g = `rise_frames` (the gap lets the hit enter the front end's window), and
+//! no more than [`RESTART_LEVEL_DB`] below the band's peak. A decaying
+//! sum of modes cannot do that, whatever its beating: rising from a beat null by 10 dB of energy
+//! takes longer than the gap unless the compared frames still hold the envelope before the null,
+//! which is higher (see [`crate::frontend::onset::RetriggerWatch`] for the same test on samples).
+
+/// Energy rise, in dB, that marks a restart (×10 in energy, ×3.16 in amplitude).
+pub const RESTART_JUMP_DB: f64 = 10.0;
+
+/// Restarts further below the band's peak than this, in dB, are not looked at (noise frames
+/// fluctuate; a band whose noise lies within 20 dB of its peak has no number anyway).
+pub const RESTART_LEVEL_DB: f64 = 20.0;
+
+/// The first frame of `energies` that restarts the decay, or `None`. `rise_frames` (≥ 1) is
+/// how many frames a new hit takes to enter the front end's window fully.
+pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
+    let g = rise_frames.max(1);
+    let peak = energies.iter().cloned().fold(0.0, f64::max);
+    if peak <= 0.0 {
+        return None;
+    }
+    let level = peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0);
+    let jump = 10f64.powf(RESTART_JUMP_DB / 10.0);
+    (2 * g..energies.len()).find(|&k| {
+        let e = energies[k];
+        let before = energies[k - 2 * g..=k - g]
+            .iter()
+            .cloned()
+            .fold(0.0, f64::max);
+        e >= level && e > jump * before
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Frame energies of a decaying mode pair (amplitudes a, b, Δf apart) every `dt` s.
+    fn pair(a: f64, b: f64, df: f64, sigma: f64, dt: f64, n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|k| {
+                let t = k as f64 * dt;
+                let phase = 2.0 * std::f64::consts::PI * df * t;
+                (-2.0 * sigma * t).exp() * (a * a + b * b + 2.0 * a * b * phase.cos())
+            })
+            .collect()
+    }
+
+    #[test]
+    fn beating_is_not_a_restart_and_a_second_hit_is() {
+        for df in [0.3, 1.0, 3.0, 10.0, 40.0] {
+            for g in [1, 2, 4] {
+                let e = pair(1.0, 1.0, df, 2.0, 0.005, 800);
+                assert_eq!(first_restart(&e, g), None, "Δf {df} Hz, gap {g}");
+            }
+        }
+        let mut e = pair(1.0, 0.7, 2.0, 3.0, 0.01, 400);
+        let second = pair(0.5, 0.3, 2.0, 3.0, 0.01, 200);
+        for (k, v) in second.iter().enumerate() {
+            e[200 + k] += v;
+        }
+        assert_eq!(first_restart(&e, 1), Some(200));
+        assert_eq!(first_restart(&e, 3), Some(200));
+        // Far below the peak it is not looked at.
+        let mut e = pair(1.0, 0.7, 2.0, 3.0, 0.01, 400);
+        for (k, v) in second.iter().enumerate() {
+            e[200 + k] += 1e-3 * v;
+        }
+        assert_eq!(first_restart(&e, 1), None);
+    }
+}

@@ -1,0 +1,130 @@
+//! One decay's bands together: the per-band estimators with the end-of-decay test, and the tests
+//! across bands (resolution, leakage, restarts) that decide which bands give a number.
+
+use crate::decay::estimate::EstimateSettings;
+use crate::decay::leakage::{flag_leakage, BandLevel, LeakageModel};
+use crate::decay::restarts::first_restart;
+use crate::decay::{DecayEstimate, DecayEstimator, Flag, OnlineSchroeder};
+use crate::frontend::{Frame, FrontEnd};
+
+/// Estimates every band of one decay, given from its onset, in one go (no threads).
+pub fn analyze_decay(
+    samples: &[f64],
+    front_end: &mut dyn FrontEnd,
+    settings: &EstimateSettings,
+) -> Vec<DecayEstimate> {
+    front_end.reset();
+    let mut trackers = BandTrackers::new(front_end, settings, f64::INFINITY);
+    front_end.process(samples, &mut |f: Frame<'_>| trackers.push(f));
+    front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
+    let cut_short = front_end.decay_cut_short();
+    let mut estimates: Vec<DecayEstimate> = trackers
+        .estimators
+        .iter()
+        .map(|e| e.provisional())
+        .collect();
+    judge_bands(front_end, &trackers.estimators, &mut estimates);
+    if cut_short {
+        estimates
+            .iter_mut()
+            .for_each(|e| e.flags.push(Flag::DecayTooLong));
+    }
+    estimates
+}
+
+/// A front end as the leakage test's model of its bands.
+struct FrontEndLeakage<'a>(&'a dyn FrontEnd);
+
+impl LeakageModel for FrontEndLeakage<'_> {
+    fn mode_gain(&self, b: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        self.0.mode_gain(b, f_hz, sigma_per_s)
+    }
+    fn flat_gain(&self, b: usize, lo_hz: f64, hi_hz: f64) -> f64 {
+        self.0.flat_gain(b, lo_hz, hi_hz)
+    }
+    fn tolerance_hz(&self) -> f64 {
+        self.0.frequency_tolerance_hz()
+    }
+}
+
+/// The tests across the bands of one decay: a band narrower than the front end resolves gives
+/// no number ([`Flag::BelowResolution`]), nor does a band whose decay is another band's
+/// ([`Flag::Leakage`], see [`crate::decay::leakage`]) or holds a new hit ([`Flag::MergedHits`]).
+pub(super) fn judge_bands(
+    front_end: &dyn FrontEnd,
+    estimators: &[OnlineSchroeder],
+    estimates: &mut [DecayEstimate],
+) {
+    let resolution = front_end.resolution();
+    let resolution_hz = resolution.frequency_resolution_hz;
+    let rise_frames = (resolution.time_resolution_s / resolution.frame_period_s).ceil() as usize;
+    let levels: Vec<BandLevel> = front_end
+        .bands()
+        .iter()
+        .zip(estimators)
+        .map(|(b, e)| BandLevel {
+            lo_hz: b.lo_hz,
+            hi_hz: b.hi_hz,
+            center_hz: b.center_hz,
+            energy: e.total_energy(),
+        })
+        .collect();
+    flag_leakage(estimates, &levels, &FrontEndLeakage(front_end));
+    for (est, band) in estimates.iter_mut().zip(front_end.bands()) {
+        if band.width_hz() < resolution_hz * (1.0 - 1e-9) && !est.has(Flag::NoEnergy) {
+            est.withhold(Flag::BelowResolution);
+        }
+    }
+    for (est, e) in estimates.iter_mut().zip(estimators) {
+        if first_restart(e.energies(), rise_frames).is_some() {
+            est.withhold(Flag::MergedHits);
+        }
+    }
+}
+
+/// Per-band estimators plus the end-of-decay test.
+pub(super) struct BandTrackers {
+    pub(super) estimators: Vec<OnlineSchroeder>,
+    peak: Vec<f64>,
+    end_factor: f64,
+    pub(super) ended: bool,
+}
+
+impl BandTrackers {
+    pub(super) fn new(fe: &dyn FrontEnd, settings: &EstimateSettings, end_drop_db: f64) -> Self {
+        let period = fe.resolution().frame_period_s;
+        BandTrackers {
+            estimators: fe
+                .bands()
+                .iter()
+                .map(|b| OnlineSchroeder::new(period, b.center_hz, *settings))
+                .collect(),
+            peak: vec![0.0; fe.bands().len()],
+            end_factor: 10f64.powf(-end_drop_db / 10.0),
+            ended: false,
+        }
+    }
+
+    pub(super) fn reset(&mut self) {
+        self.estimators.iter_mut().for_each(|e| e.reset());
+        self.peak.iter_mut().for_each(|p| *p = 0.0);
+        self.ended = false;
+    }
+
+    pub(super) fn push(&mut self, frame: Frame<'_>) {
+        if self.ended {
+            return;
+        }
+        let mut all_low = true;
+        for (k, est) in self.estimators.iter_mut().enumerate() {
+            if frame.active.is_some_and(|a| !a[k]) {
+                continue;
+            }
+            let e = frame.energy[k];
+            est.push_frame(e, frame.frequency_hz[k]);
+            self.peak[k] = self.peak[k].max(e);
+            all_low &= e <= self.peak[k] * self.end_factor;
+        }
+        self.ended = all_low && self.end_factor > 0.0;
+    }
+}

@@ -1,0 +1,319 @@
+//! One channel's stream: decay onsets, new hits, the front end and the band estimators.
+
+use super::bands::{judge_bands, BandTrackers};
+use super::{AnalysisConfig, ResultRow, RETRIGGER_MIN_FREQUENCY_HZ};
+use crate::decay::{DecayEstimate, DecayEstimator, Flag};
+use crate::frontend::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
+use crate::frontend::{Frame, FrontEnd};
+
+enum State {
+    Searching,
+    Decaying { onset_index: u64, samples: u64 },
+}
+
+/// Finds decays in one channel's stream and estimates each band of each decay.
+pub struct ChannelAnalyzer {
+    name: String,
+    sample_rate_hz: f64,
+    config: AnalysisConfig,
+    front_end: Box<dyn FrontEnd>,
+    trackers: BandTrackers,
+    band_in_range: Vec<bool>,
+    detector: OnsetDetector,
+    watch: RetriggerWatch,
+    retriggered: bool,
+    state: State,
+    decays: usize,
+    last_peak: f64,
+    failed: bool,
+    finished: bool,
+    fragments: usize,
+}
+
+/// Samples fed to the front end between end-of-decay checks.
+const CHECK_SAMPLES: usize = 1024;
+
+impl ChannelAnalyzer {
+    /// An analyzer for channel `name` at `sample_rate_hz` using `front_end`.
+    pub fn new(
+        name: String,
+        sample_rate_hz: f64,
+        front_end: Box<dyn FrontEnd>,
+        config: AnalysisConfig,
+    ) -> Self {
+        let nyquist = 0.5 * sample_rate_hz;
+        let band_in_range = front_end
+            .bands()
+            .iter()
+            .map(|b| b.hi_hz <= nyquist * (1.0 + 1e-12))
+            .collect();
+        let lookahead = (config.onset_lookahead_s * sample_rate_hz).round().max(1.0) as usize;
+        let onset = OnsetSettings {
+            level_db: config.onset_level_db,
+            lookahead_samples: lookahead,
+            max_buffer_samples: lookahead.saturating_mul(20).max(1 << 16),
+        };
+        let lowest_hz = front_end
+            .bands()
+            .iter()
+            .map(|b| b.lo_hz)
+            .fold(f64::INFINITY, f64::min)
+            .max(RETRIGGER_MIN_FREQUENCY_HZ);
+        let gap = ((sample_rate_hz / (4.0 * lowest_hz)).ceil() as usize).min(lookahead);
+        ChannelAnalyzer {
+            trackers: BandTrackers::new(&*front_end, &config.estimate, config.end_drop_db),
+            name,
+            sample_rate_hz,
+            front_end,
+            band_in_range,
+            detector: OnsetDetector::new(onset, 0.0),
+            watch: RetriggerWatch::new(lookahead, gap, config.retrigger_jump_db),
+            retriggered: false,
+            state: State::Searching,
+            decays: 0,
+            last_peak: 0.0,
+            failed: false,
+            finished: false,
+            fragments: 0,
+            config,
+        }
+    }
+
+    fn max_decay_samples(&self) -> u64 {
+        self.config.max_decay_s.map_or(u64::MAX, |s| {
+            (s * self.sample_rate_hz).round().max(1.0) as u64
+        })
+    }
+
+    fn feed(&mut self, samples: &[f64]) {
+        let trackers = &mut self.trackers;
+        self.front_end
+            .process(samples, &mut |f: Frame<'_>| trackers.push(f));
+    }
+
+    fn rows_for(
+        &self,
+        position_sample: u64,
+        onset_s: Option<f64>,
+        estimates: Vec<DecayEstimate>,
+    ) -> Vec<ResultRow> {
+        self.front_end
+            .bands()
+            .iter()
+            .zip(estimates)
+            .map(|(band, estimate)| ResultRow {
+                channel: self.name.clone(),
+                position_sample,
+                decay: self.decays,
+                onset_s,
+                front_end: self.front_end.name(),
+                band: *band,
+                range: self.config.estimate.range,
+                estimate,
+            })
+            .collect()
+    }
+
+    fn finalize(&mut self, truncated: bool, out: &mut Vec<ResultRow>) {
+        let State::Decaying { onset_index, .. } = self.state else {
+            return;
+        };
+        let trackers = &mut self.trackers;
+        self.front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
+        if self.decays > 0 && self.trackers.estimators.iter().all(|e| e.frames() == 0) {
+            // A re-trigger too short for a single frame at the end of the input (e.g. the
+            // wrap-around at the end of an impulse response made by inverse FFT) is not a decay.
+            self.fragments += 1;
+            self.state = State::Searching;
+            return;
+        }
+        let cut_short = self.front_end.decay_cut_short();
+        let mut estimates: Vec<DecayEstimate> = self
+            .trackers
+            .estimators
+            .iter()
+            .zip(&self.band_in_range)
+            .map(|(e, &ok)| {
+                if ok {
+                    e.provisional()
+                } else {
+                    DecayEstimate::failed(Flag::BandOutOfRange)
+                }
+            })
+            .collect();
+        judge_bands(&*self.front_end, &self.trackers.estimators, &mut estimates);
+        for est in &mut estimates {
+            if truncated {
+                est.flags.push(Flag::InputTruncated);
+            }
+            if cut_short {
+                est.flags.push(Flag::DecayTooLong);
+            }
+        }
+        let onset_s = onset_index as f64 / self.sample_rate_hz;
+        out.extend(self.rows_for(onset_index, Some(onset_s), estimates));
+        self.decays += 1;
+        self.state = State::Searching;
+        self.detector
+            .rearm(self.last_peak * 10f64.powf(-self.config.retrigger_db / 20.0));
+    }
+
+    fn start_decay(&mut self, onset_index: u64, first: &[f64], peak: f64) {
+        self.front_end.reset();
+        self.trackers.reset();
+        self.last_peak = peak;
+        self.retriggered = false;
+        self.watch.restart(
+            peak * 10f64.powf(-self.config.retrigger_db / 20.0),
+            first.len(),
+        );
+        self.state = State::Decaying {
+            onset_index,
+            samples: 0,
+        };
+        self.feed_decay(first);
+    }
+
+    /// Feeds decay samples; returns how many were consumed before the decay ended.
+    fn feed_decay(&mut self, samples: &[f64]) -> usize {
+        let max = self.max_decay_samples();
+        let mut used = 0;
+        while used < samples.len() {
+            let State::Decaying { samples: n, .. } = self.state else {
+                break;
+            };
+            let room = (max - n).min(CHECK_SAMPLES as u64) as usize;
+            let mut take = room.min(samples.len() - used);
+            if take == 0 {
+                break;
+            }
+            if let Some(hit) = self.watch.scan(&samples[used..used + take]) {
+                take = hit;
+                self.retriggered = true;
+            }
+            self.feed(&samples[used..used + take]);
+            used += take;
+            if let State::Decaying { samples: n, .. } = &mut self.state {
+                *n += take as u64;
+                if *n >= max || self.trackers.ended || self.retriggered {
+                    break;
+                }
+            }
+        }
+        used
+    }
+
+    /// Feeds the next samples of the channel; rows of decays that ended are appended to `out`.
+    pub fn push(&mut self, samples: &[f64], out: &mut Vec<ResultRow>) {
+        if self.failed {
+            return;
+        }
+        if let Some(bad) = samples.iter().position(|x| !x.is_finite()) {
+            // Decays that ended before the bad sample stand, whatever the block size; the open
+            // one is dropped and the channel stops there.
+            self.push(&samples[..bad], out);
+            if self.failed {
+                return;
+            }
+            self.failed = true;
+            let n = self.front_end.bands().len();
+            let failed = vec![DecayEstimate::failed(Flag::NonFiniteInput); n];
+            out.extend(self.rows_for(self.detector.position(), None, failed));
+            return;
+        }
+        let mut rest = samples;
+        while !rest.is_empty() {
+            match self.state {
+                State::Searching => match self.detector.push(rest) {
+                    OnsetEvent::Pending => return,
+                    OnsetEvent::Found {
+                        onset_index,
+                        samples,
+                        consumed,
+                        peak,
+                    } => {
+                        rest = &rest[consumed..];
+                        self.start_decay(onset_index, &samples, peak);
+                    }
+                },
+                State::Decaying { .. } => {
+                    let used = self.feed_decay(rest);
+                    self.detector.advance(used);
+                    rest = &rest[used..];
+                }
+            }
+            if let State::Decaying { samples: n, .. } = self.state {
+                if n >= self.max_decay_samples() || self.trackers.ended || self.retriggered {
+                    self.finalize(false, out);
+                }
+            }
+        }
+    }
+
+    /// The input ended (`truncated`: it ended early or broken). Flushes the current decay; a
+    /// channel in which no decay was ever found gets one row per band flagged `no_energy`.
+    pub fn finish(&mut self, truncated: bool, out: &mut Vec<ResultRow>) {
+        if self.failed || self.finished {
+            return;
+        }
+        self.finished = true;
+        if let State::Searching = self.state {
+            if let OnsetEvent::Found {
+                onset_index,
+                samples,
+                peak,
+                ..
+            } = self.detector.finish()
+            {
+                self.start_decay(onset_index, &samples, peak);
+            }
+        }
+        self.finalize(truncated, out);
+        if self.decays == 0 {
+            let n = self.front_end.bands().len();
+            let mut est = DecayEstimate::failed(Flag::NoEnergy);
+            if truncated {
+                est.flags.push(Flag::InputTruncated);
+            }
+            out.extend(self.rows_for(self.detector.position(), None, vec![est; n]));
+        }
+    }
+
+    /// The smallest stream position (sample index) that a row this analyzer produces from now on
+    /// can carry: the onset of the open decay, where the onset search armed, or how far it has
+    /// read; `u64::MAX` once it can produce nothing more.
+    pub fn watermark(&self) -> u64 {
+        if self.failed || self.finished {
+            return u64::MAX;
+        }
+        match self.state {
+            State::Decaying { onset_index, .. } => onset_index,
+            State::Searching => self
+                .detector
+                .armed_at()
+                .unwrap_or_else(|| self.detector.position()),
+        }
+    }
+
+    /// Re-triggers dropped because they ended before a single frame (not decays).
+    pub fn fragments(&self) -> usize {
+        self.fragments
+    }
+
+    /// True once non-finite samples were seen (nothing more is reported for this channel).
+    pub fn failed(&self) -> bool {
+        self.failed
+    }
+
+    /// Stops the channel: one row per band carrying only `flag` (for a channel that cannot go
+    /// on); nothing more comes from it.
+    pub(super) fn fail_with(&mut self, flag: Flag) -> Vec<ResultRow> {
+        self.failed = true;
+        let n = self.front_end.bands().len();
+        self.rows_for(
+            self.detector.position(),
+            None,
+            vec![DecayEstimate::failed(flag); n],
+        )
+    }
+}
