@@ -142,6 +142,13 @@ pub fn run(
     if n_channels == 0 {
         return Err(Error::setting("input", "no channels"));
     }
+    let mut seen = std::collections::HashSet::new();
+    if let Some(dup) = info.channel_names.iter().find(|n| !seen.insert(*n)) {
+        return Err(Error::setting(
+            "input",
+            format!("expected unique channel names, got {dup:?} twice"),
+        ));
+    }
     let workers = n_channels.min(
         std::thread::available_parallelism()
             .map(|n| n.get())
@@ -186,9 +193,13 @@ pub fn run(
                     }
                 }
             }
-            let truncated = failure.is_some();
-            for tx in &worker_txs {
-                let _ = tx.send(ToWorker::End { truncated });
+            // An input without a single sample frame is an error, not a run of empty rows:
+            // the workers stop without finishing their channels.
+            if !matches!(failure, Some(SourceError::Empty { .. })) {
+                let truncated = failure.is_some();
+                for tx in &worker_txs {
+                    let _ = tx.send(ToWorker::End { truncated });
+                }
             }
             failure
         });
@@ -227,6 +238,16 @@ pub fn run(
         }
         deliver(order.drain(), &mut summary);
         summary.input_error = reader.join().unwrap_or(None);
+        if let Some(SourceError::Empty { .. }) = summary.input_error {
+            for h in handles {
+                let _ = h.join();
+            }
+            return Err(summary
+                .input_error
+                .take()
+                .map(Error::from)
+                .unwrap_or_else(|| Error::setting("input", "no samples")));
+        }
         for h in handles {
             let _ = h.join();
         }

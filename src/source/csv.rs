@@ -7,11 +7,14 @@
 //! - no header (the first row is numeric): every column is a channel, named `ch0`, `ch1`, ….
 //!
 //! Lines starting with `#` are comments; `# fs=51200` (or `# fs: 51200`, anything may follow
-//! the number) gives the sample rate. Precedence: an explicit rate from the caller, then the
-//! comment, then the time column (the time column is not checked when a rate is given).
+//! the number) gives the sample rate. Every rate the input states (the caller's, the comment,
+//! the time column's mean step over the first rows) must agree, within 1e-6 or what the time
+//! column's printed precision allows; a contradiction is [`SourceError::Setting`]. The time
+//! column's steps are always checked. Channel names must be unique.
 //! Separators: `,`, else `;`, else tab (detected on the first row). `NaN`/`inf` are passed through
-//! (the pipeline flags the channel); text that is not a number is [`SourceError::Malformed`] with
-//! the line number. Rows before a bad row are always delivered first.
+//! and an empty cell is read as NaN (the pipeline flags that channel only); text that is not a
+//! number is [`SourceError::Malformed`] with the line number. Rows before a bad row are always
+//! delivered first.
 
 use std::io::{BufRead, Read};
 
@@ -36,8 +39,10 @@ pub struct CsvSource<R: BufRead + Send> {
     info: SignalInfo,
     delim: char,
     time_column: bool,
-    /// Check the time column's spacing (only when the rate came from it).
+    /// Check the time column's spacing (whenever there is a time column).
     check_time: bool,
+    /// The coarsest step in which the time column is printed, s (its last decimal).
+    time_resolution_s: f64,
     /// Columns per row, including the time column.
     n_cols: usize,
     line_no: usize,
@@ -100,6 +105,7 @@ impl<R: BufRead + Send> CsvSource<R> {
             delim: ',',
             time_column: false,
             check_time: false,
+            time_resolution_s: 0.0,
             n_cols: 0,
             line_no: 0,
             comment_fs: None,
@@ -141,52 +147,96 @@ impl<R: BufRead + Send> CsvSource<R> {
                 });
             }
         }
-        let fs = match fs_hz.or(s.comment_fs) {
-            Some(fs) => fs,
-            None if s.time_column => s.fs_from_time()?,
-            None => {
+        check_unique_names(&s.what, &s.info.channel_names)?;
+        // Every rate the input states must agree: a contradiction changes every number.
+        let from_time = if s.time_column {
+            Some(s.fs_from_time()?)
+        } else {
+            None
+        };
+        let stated = [
+            (fs_hz, "the given sample rate"),
+            (s.comment_fs, "the `# fs=` comment"),
+            (from_time, "the time column"),
+        ];
+        let mut known = stated.iter().filter_map(|&(fs, by)| fs.map(|f| (f, by)));
+        let Some((fs, by)) = known.next() else {
+            return Err(SourceError::Setting {
+                what: s.what,
+                detail: "sample rate unknown: expected a `time` column, a `# fs=HZ` comment or an explicit fs".into(),
+            });
+        };
+        let tolerance = if s.time_column {
+            s.time_rate_uncertainty()
+        } else {
+            FS_AGREEMENT
+        };
+        for (other, other_by) in known {
+            if ((other / fs) - 1.0).abs() > tolerance {
                 return Err(SourceError::Setting {
                     what: s.what,
-                    detail: "sample rate unknown: expected a `time` column, a `# fs=HZ` comment or an explicit fs".into(),
-                })
+                    detail: format!(
+                        "contradictory sample rates: {by} says {fs} Hz, {other_by} says {other} Hz"
+                    ),
+                });
             }
-        };
+        }
         s.info.sample_rate_hz = check_fs(&s.what, fs)?;
         Ok(s)
     }
 
-    /// Reads the first two rows to get the rate from the time spacing; keeps them queued.
+    /// Reads up to [`TIME_FIT_ROWS`] rows ahead (keeping them queued) and returns the rate from
+    /// the time column's mean step over them (a rate from two printed times alone would carry
+    /// their rounding); the steps between them are checked.
     fn fs_from_time(&mut self) -> Result<f64, SourceError> {
-        while self.queued.len() < 2 {
+        let ahead = (TIME_FIT_CELLS / self.n_cols.max(1)).clamp(2, TIME_FIT_ROWS);
+        while self.queued.len() < ahead {
             match self.next_line()? {
                 Line::Data(l, nl) => {
                     let row = self.parse_row(&l, nl)?;
                     self.queued.push_back(row);
                 }
-                Line::End => {
-                    if self.queued.is_empty() {
-                        return Err(SourceError::Empty {
-                            what: self.what.clone(),
-                        });
-                    }
-                    return Err(SourceError::Setting {
-                        what: self.what.clone(),
-                        detail: "sample rate unknown: the time column needs at least 2 rows, got 1"
-                            .into(),
-                    });
-                }
+                Line::End => break,
             }
         }
-        let dt = self.queued[1][0] - self.queued[0][0];
+        match self.queued.len() {
+            0 => {
+                return Err(SourceError::Empty {
+                    what: self.what.clone(),
+                })
+            }
+            1 => {
+                return Err(SourceError::Setting {
+                    what: self.what.clone(),
+                    detail: "sample rate unknown: the time column needs at least 2 rows, got 1"
+                        .into(),
+                })
+            }
+            _ => {}
+        }
+        let n = self.queued.len();
+        let (t0, t1) = (self.queued[0][0], self.queued[n - 1][0]);
+        let dt = (t1 - t0) / (n - 1) as f64;
         if !(dt.is_finite() && dt > 0.0) {
             return Err(self.malformed(format!(
-                "time column: expected increasing times, got {} then {}",
-                self.queued[0][0], self.queued[1][0]
+                "time column: expected increasing times, got {t0} then {}",
+                self.queued[1][0]
             )));
         }
         self.check_time = true;
-        self.last_time = Some(self.queued[1][0]);
+        for k in 1..n {
+            let (prev, t) = (self.queued[k - 1][0], self.queued[k][0]);
+            self.check_step(prev, t, dt, self.line_no + k + 1 - n)?;
+        }
+        self.last_time = Some(t1);
         Ok(1.0 / dt)
+    }
+
+    /// The relative uncertainty of the rate from the time column, from its printing.
+    fn time_rate_uncertainty(&self) -> f64 {
+        let n = self.queued.len();
+        let span = self.queued[n - 1][0] - self.queued[0][0];
+        (2.0 * self.time_resolution_s / span).max(FS_AGREEMENT)
     }
 
     /// Replaces the channel names (for example by sensor ids). Errors when the count differs.
@@ -254,12 +304,18 @@ impl<R: BufRead + Send> CsvSource<R> {
     }
 
     /// Parses one data row into its numbers (time first when there is a time column).
-    fn parse_row(&self, line: &str, newline: bool) -> Result<Vec<f64>, SourceError> {
+    fn parse_row(&mut self, line: &str, newline: bool) -> Result<Vec<f64>, SourceError> {
         let mut row = Vec::with_capacity(self.n_cols);
         for (k, field) in line.split(self.delim).enumerate() {
             let f = field.trim();
+            let is_channel = !(self.time_column && k == 0);
+            if !is_channel {
+                self.time_resolution_s = self.time_resolution_s.max(printed_resolution(f));
+            }
             match f.parse::<f64>() {
                 Ok(v) => row.push(v),
+                // An empty cell is a missing sample of that channel only (as NaN would be).
+                Err(_) if f.is_empty() && is_channel => row.push(f64::NAN),
                 Err(_) => {
                     let col = if self.time_column && k == 0 {
                         "time".to_string()
@@ -299,19 +355,64 @@ impl<R: BufRead + Send> CsvSource<R> {
     /// Checks the spacing of a new time value against the rate.
     fn check_spacing(&mut self, t: f64) -> Result<(), SourceError> {
         if let Some(prev) = self.last_time {
-            let dt = 1.0 / self.info.sample_rate_hz;
-            let tol = 1e-6 * dt + 8.0 * f64::EPSILON * t.abs().max(prev.abs());
-            if !((t - prev) - dt).abs().le(&tol) {
-                return Err(self.malformed(format!(
-                    "line {}: time column not uniform: expected a step of {dt:e} s (within 1e-6 relative), got {:e} s",
-                    self.line_no,
-                    t - prev
-                )));
-            }
+            self.check_step(prev, t, 1.0 / self.info.sample_rate_hz, self.line_no)?;
         }
         self.last_time = Some(t);
         Ok(())
     }
+
+    /// One step of the time column against `dt`: equal within 1e-6 relative, or within the
+    /// precision the times are printed with (each of two rounded times is off by half a step).
+    fn check_step(&self, prev: f64, t: f64, dt: f64, line: usize) -> Result<(), SourceError> {
+        let tol = 1e-6 * dt
+            + self.time_resolution_s * (1.0 + 1e-9)
+            + 8.0 * f64::EPSILON * t.abs().max(prev.abs());
+        if !((t - prev) - dt).abs().le(&tol) {
+            return Err(self.malformed(format!(
+                "line {line}: time column not uniform: expected a step of {dt:e} s (within 1e-6 relative or the printed precision), got {:e} s",
+                t - prev
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Relative tolerance within which two stated sample rates agree (the time column's own
+/// spacing tolerance), unless the time column's printing is coarser.
+const FS_AGREEMENT: f64 = 1e-6;
+
+/// Rows read ahead to take the rate from the time column (bounded by [`TIME_FIT_CELLS`]).
+const TIME_FIT_ROWS: usize = 4096;
+
+/// Cells (rows × columns) read ahead at most for the rate from the time column.
+const TIME_FIT_CELLS: usize = 1 << 20;
+
+/// The step of the last printed digit of a number: `0.00025` → 1e-5, `2.5e-4` → 1e-5, `3` → 1.
+fn printed_resolution(text: &str) -> f64 {
+    let (mantissa, exponent) = match text.find(['e', 'E']) {
+        Some(i) => (&text[..i], text[i + 1..].parse::<i32>().unwrap_or(0)),
+        None => (text, 0),
+    };
+    let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
+    10f64.powi(exponent - decimals)
+}
+
+/// Channel names must be unique: a repeated name would merge two sensors' results.
+pub(crate) fn check_unique_names(what: &str, names: &[String]) -> Result<(), SourceError> {
+    let mut seen = std::collections::HashSet::new();
+    for (k, n) in names.iter().enumerate() {
+        if !seen.insert(n) {
+            return Err(SourceError::Malformed {
+                what: what.to_string(),
+                format: "csv",
+                detail: format!(
+                    "expected unique channel names, got {n:?} again in column {}",
+                    k + 1
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 impl<R: BufRead + Send> Source for CsvSource<R> {

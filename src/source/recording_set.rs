@@ -179,6 +179,19 @@ pub fn read_sensors(path: &Path) -> Result<Vec<Sensor>, SourceError> {
     );
     let cz = header.iter().position(|h| h == "z");
     let cd = header.iter().position(|h| h == "dir");
+    let mut seen = std::collections::HashMap::new();
+    for (line, r) in &rows {
+        if let Some(first) = seen.insert(r[ci].clone(), *line) {
+            return Err(malformed(
+                path,
+                "csv",
+                format!(
+                    "line {line}: expected unique sensor ids, got {:?} again (first on line {first})",
+                    r[ci]
+                ),
+            ));
+        }
+    }
     rows.iter()
         .map(|(line, r)| {
             Ok(Sensor {
@@ -249,6 +262,17 @@ pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
             s = s.with_int_scale(scale);
         }
         let got = s.header().channels;
+        let header_fs = f64::from(s.header().sample_rate_hz);
+        if let Some(fs) = meta.fs {
+            if (fs / header_fs - 1.0).abs() > 1e-9 {
+                return Err(SourceError::Setting {
+                    what: what.clone(),
+                    detail: format!(
+                        "contradictory sample rates: the WAV header says {header_fs} Hz, meta.json says fs = {fs} Hz (remove or correct meta.json's fs)"
+                    ),
+                });
+            }
+        }
         (what, got, Box::new(s))
     } else if csv.exists() {
         let what = csv.display().to_string();
