@@ -41,8 +41,12 @@ pub struct CsvSource<R: BufRead + Send> {
     time_column: bool,
     /// Check the time column's spacing (whenever there is a time column).
     check_time: bool,
-    /// The coarsest step in which the time column is printed, s (its last decimal).
-    time_resolution_s: f64,
+    /// The step of the last printed decimal of the last row's time, s (0 for an integer).
+    row_time_resolution_s: f64,
+    /// The same for the previous row's time.
+    last_time_resolution_s: f64,
+    /// The rate's relative uncertainty from the time column's printing (0 without one).
+    rate_uncertainty: f64,
     /// Columns per row, including the time column.
     n_cols: usize,
     line_no: usize,
@@ -52,6 +56,8 @@ pub struct CsvSource<R: BufRead + Send> {
     queued: std::collections::VecDeque<Vec<f64>>,
     last_time: Option<f64>,
     pending: Option<SourceError>,
+    /// An error met while reading ahead, due once the queued rows before it are delivered.
+    pending_after_queue: Option<SourceError>,
     frames_read: u64,
     done: bool,
     buf: Vec<u8>,
@@ -105,13 +111,16 @@ impl<R: BufRead + Send> CsvSource<R> {
             delim: ',',
             time_column: false,
             check_time: false,
-            time_resolution_s: 0.0,
+            row_time_resolution_s: 0.0,
+            last_time_resolution_s: 0.0,
+            rate_uncertainty: 0.0,
             n_cols: 0,
             line_no: 0,
             comment_fs: None,
             queued: Default::default(),
             last_time: None,
             pending: None,
+            pending_after_queue: None,
             frames_read: 0,
             done: false,
             buf: Vec::new(),
@@ -187,56 +196,90 @@ impl<R: BufRead + Send> CsvSource<R> {
 
     /// Reads up to [`TIME_FIT_ROWS`] rows ahead (keeping them queued) and returns the rate from
     /// the time column's mean step over them (a rate from two printed times alone would carry
-    /// their rounding); the steps between them are checked.
+    /// their rounding). A bad row or step among them ends the read-ahead: the rows before it are
+    /// delivered, then its error.
     fn fs_from_time(&mut self) -> Result<f64, SourceError> {
         let ahead = (TIME_FIT_CELLS / self.n_cols.max(1)).clamp(2, TIME_FIT_ROWS);
+        let mut res = Vec::new();
+        let mut stop = None;
         while self.queued.len() < ahead {
-            match self.next_line()? {
-                Line::Data(l, nl) => {
-                    let row = self.parse_row(&l, nl)?;
-                    self.queued.push_back(row);
+            match self.next_line() {
+                Ok(Line::Data(l, nl)) => match self.parse_row(&l, nl) {
+                    Ok(row) => {
+                        self.queued.push_back(row);
+                        res.push(self.row_time_resolution_s);
+                    }
+                    Err(e) => {
+                        stop = Some(e);
+                        break;
+                    }
+                },
+                Ok(Line::End) => break,
+                Err(e) => {
+                    stop = Some(e);
+                    break;
                 }
-                Line::End => break,
             }
         }
-        match self.queued.len() {
-            0 => {
+        let first_line = self.line_no + 1 - self.queued.len() - usize::from(stop.is_some());
+        if self.queued.len() >= 2 {
+            let (t0, t1) = (self.queued[0][0], self.queued[1][0]);
+            if !(t1 - t0 > 0.0 && (t1 - t0).is_finite()) {
+                return Err(self.malformed(format!(
+                    "time column: expected increasing times, got {t0} then {t1}"
+                )));
+            }
+        }
+        for k in 2..self.queued.len() {
+            // The mean step over the rows before checks the next one.
+            let dt = (self.queued[k - 1][0] - self.queued[0][0]) / (k - 1) as f64;
+            let uncertain = 0.5 * (res[0] + res[k - 1]) / (k - 1) as f64;
+            let (prev, t) = (self.queued[k - 1][0], self.queued[k][0]);
+            let printed = res[k - 1] + res[k];
+            if let Err(e) = self.check_step(prev, t, dt, printed, uncertain, first_line + k) {
+                self.queued.truncate(k);
+                res.truncate(k);
+                stop = Some(e);
+                break;
+            }
+        }
+        let n = self.queued.len();
+        match (n, stop) {
+            (0, None) => {
                 return Err(SourceError::Empty {
                     what: self.what.clone(),
                 })
             }
-            1 => {
+            (0 | 1, Some(e)) => return Err(e),
+            (1, None) => {
                 return Err(SourceError::Setting {
                     what: self.what.clone(),
                     detail: "sample rate unknown: the time column needs at least 2 rows, got 1"
                         .into(),
                 })
             }
+            (_, Some(e)) => {
+                self.pending_after_queue = Some(e);
+            }
             _ => {}
         }
-        let n = self.queued.len();
         let (t0, t1) = (self.queued[0][0], self.queued[n - 1][0]);
         let dt = (t1 - t0) / (n - 1) as f64;
         if !(dt.is_finite() && dt > 0.0) {
             return Err(self.malformed(format!(
-                "time column: expected increasing times, got {t0} then {}",
-                self.queued[1][0]
+                "time column: expected increasing times, got {t0} then {t1}"
             )));
         }
         self.check_time = true;
-        for k in 1..n {
-            let (prev, t) = (self.queued[k - 1][0], self.queued[k][0]);
-            self.check_step(prev, t, dt, self.line_no + k + 1 - n)?;
-        }
         self.last_time = Some(t1);
+        self.last_time_resolution_s = res[n - 1];
+        self.rate_uncertainty = (res[0] + res[n - 1]) / (t1 - t0);
         Ok(1.0 / dt)
     }
 
     /// The relative uncertainty of the rate from the time column, from its printing.
     fn time_rate_uncertainty(&self) -> f64 {
-        let n = self.queued.len();
-        let span = self.queued[n - 1][0] - self.queued[0][0];
-        (2.0 * self.time_resolution_s / span).max(FS_AGREEMENT)
+        self.rate_uncertainty.max(FS_AGREEMENT)
     }
 
     /// Replaces the channel names (for example by sensor ids). Errors when the count differs.
@@ -310,7 +353,7 @@ impl<R: BufRead + Send> CsvSource<R> {
             let f = field.trim();
             let is_channel = !(self.time_column && k == 0);
             if !is_channel {
-                self.time_resolution_s = self.time_resolution_s.max(printed_resolution(f));
+                self.row_time_resolution_s = printed_resolution(f);
             }
             match f.parse::<f64>() {
                 Ok(v) => row.push(v),
@@ -354,18 +397,38 @@ impl<R: BufRead + Send> CsvSource<R> {
 
     /// Checks the spacing of a new time value against the rate.
     fn check_spacing(&mut self, t: f64) -> Result<(), SourceError> {
+        let res = self.row_time_resolution_s;
         if let Some(prev) = self.last_time {
-            self.check_step(prev, t, 1.0 / self.info.sample_rate_hz, self.line_no)?;
+            let printed = self.last_time_resolution_s + res;
+            self.check_step(
+                prev,
+                t,
+                1.0 / self.info.sample_rate_hz,
+                printed,
+                0.0,
+                self.line_no,
+            )?;
         }
         self.last_time = Some(t);
+        self.last_time_resolution_s = res;
         Ok(())
     }
 
-    /// One step of the time column against `dt`: equal within 1e-6 relative, or within the
-    /// precision the times are printed with (each of two rounded times is off by half a step).
-    fn check_step(&self, prev: f64, t: f64, dt: f64, line: usize) -> Result<(), SourceError> {
+    /// One step of the time column against `dt`: equal within 1e-6 relative, plus half the
+    /// printed step of each of the two times (`printed_s` is their sum) and `dt`'s own
+    /// uncertainty `dt_uncertainty_s`.
+    fn check_step(
+        &self,
+        prev: f64,
+        t: f64,
+        dt: f64,
+        printed_s: f64,
+        dt_uncertainty_s: f64,
+        line: usize,
+    ) -> Result<(), SourceError> {
         let tol = 1e-6 * dt
-            + self.time_resolution_s * (1.0 + 1e-9)
+            + 0.5 * printed_s * (1.0 + 1e-9)
+            + dt_uncertainty_s
             + 8.0 * f64::EPSILON * t.abs().max(prev.abs());
         if !((t - prev) - dt).abs().le(&tol) {
             return Err(self.malformed(format!(
@@ -387,8 +450,12 @@ const TIME_FIT_ROWS: usize = 4096;
 /// Cells (rows × columns) read ahead at most for the rate from the time column.
 const TIME_FIT_CELLS: usize = 1 << 20;
 
-/// The step of the last printed digit of a number: `0.00025` → 1e-5, `2.5e-4` → 1e-5, `3` → 1.
+/// The step of the last printed digit of a number: `0.00025` → 1e-5, `2.5e-4` → 1e-5; an
+/// integer (`0`, `3`) counts as exact (0), as writers print whole times without decimals.
 fn printed_resolution(text: &str) -> f64 {
+    if !text.contains(['.', 'e', 'E']) {
+        return 0.0;
+    }
     let (mantissa, exponent) = match text.find(['e', 'E']) {
         Some(i) => (&text[..i], text[i + 1..].parse::<i32>().unwrap_or(0)),
         None => (text, 0),
@@ -436,6 +503,11 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
             let row = if let Some(r) = self.queued.pop_front() {
                 r
             } else {
+                if let Some(e) = self.pending_after_queue.take() {
+                    self.done = true;
+                    self.pending = Some(e);
+                    break;
+                }
                 if self.done {
                     break;
                 }
