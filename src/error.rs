@@ -16,6 +16,16 @@ pub enum Error {
         /// What is wrong with it.
         reason: String,
     },
+    /// The work would need more memory than the budget allows (checked before allocating).
+    #[error("memory: {what} needs about {estimate}, more than the limit of {limit} (raise it with --max-memory, or reduce the work)")]
+    MemoryLimit {
+        /// What was to be allocated.
+        what: String,
+        /// The estimate, readable.
+        estimate: String,
+        /// The limit, readable.
+        limit: String,
+    },
     /// Writing results failed.
     #[error("cannot write results: {0}")]
     Output(String),

@@ -17,6 +17,7 @@
 //! Plain data structs travel between them.
 
 pub mod analysis;
+pub mod budget;
 pub mod cli;
 pub mod decay;
 pub mod diagnose;

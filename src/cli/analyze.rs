@@ -166,6 +166,16 @@ pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Resu
     for w in warnings {
         eprintln!("dampscope: warning: {w}");
     }
+    if let Some(frames) = source.duration_frames() {
+        let window = args.bands.window_ms * 1e-3 * fs;
+        if args.front_end == FrontEndChoice::Stft && window > frames as f64 {
+            anyhow::bail!(
+                "invalid setting --window-ms: expected at most the input's length ({:.3} s), got {} ms",
+                frames as f64 / fs,
+                args.bands.window_ms
+            );
+        }
+    }
     let factory = front_end_factory(
         args.front_end,
         &args.bands,

@@ -19,6 +19,8 @@ pub struct BandArgs {
     /// Consecutive bands LO:HI:WIDTH in Hz, or a layout: `octave`, `third-octave` (IEC 61260-1
     /// base-10, nominal labels), `auto` (mode-centred: one band per spectral peak of the decay,
     /// edges halfway to the neighbours) or `model` (one band per mode of --model). Repeatable.
+    /// Without --band and --bands: the report's layout, 50 Hz wide bands centred on 50, 100,
+    /// 150, … Hz up to 0.4 fs (at most 2 kHz), i.e. `25:TOP:50`.
     #[arg(
         long = "bands",
         value_name = "LO:HI:WIDTH|octave|third-octave|auto|model"

@@ -29,6 +29,10 @@ pub const EXIT_PARTIAL: i32 = 3;
 #[derive(Debug, Parser)]
 #[command(name = "dampscope", version, about, long_about = None)]
 pub struct Cli {
+    /// Largest memory any step may be estimated to need, e.g. 200M or 4G (default: half of the
+    /// memory the machine has available). Checked before allocating; a refusal names both.
+    #[arg(long, global = true, value_name = "SIZE", value_parser = crate::budget::parse_size)]
+    pub max_memory: Option<u64>,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -67,6 +71,9 @@ pub fn main_exit_code() -> i32 {
             return code;
         }
     };
+    if let Some(limit) = cli.max_memory {
+        crate::budget::set_process_limit(limit);
+    }
     let result = match &cli.command {
         Command::Analyze(args) => analyze::run(args),
         Command::Demo(args) => demo::run(args).map(|_| EXIT_OK),

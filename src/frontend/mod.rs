@@ -79,6 +79,13 @@ pub trait FrontEnd: Send {
         false
     }
 
+    /// Bytes this front end holds at most, its buffers grown to their caps (the memory budget
+    /// multiplies it by the channel count before the other channels' front ends are built).
+    /// The default counts per-band state only; buffering front ends add their buffers.
+    fn memory_bytes(&self) -> usize {
+        self.bands().len() * 256
+    }
+
     /// A short name for tables and logs (`stft`, `goyder`, `octave`).
     fn name(&self) -> &'static str;
 

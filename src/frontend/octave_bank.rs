@@ -287,6 +287,14 @@ impl OctaveBankFrontEnd {
 }
 
 impl FrontEnd for OctaveBankFrontEnd {
+    fn memory_bytes(&self) -> usize {
+        let buffer = match self.settings.direction {
+            FilterDirection::Reversed => self.max_samples.saturating_mul(8),
+            FilterDirection::Forward => 0,
+        };
+        buffer + self.bands.len() * 512
+    }
+
     fn bands(&self) -> &[Band] {
         &self.bands
     }

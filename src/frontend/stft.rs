@@ -63,6 +63,13 @@ pub struct StftFrontEnd {
     zero_pad: usize,
 }
 
+/// Bytes one STFT front end holds: window, FFT buffers and plan, power spectrum, band weights
+/// (each about one spectrum in total), the pending input, and the per-band figures.
+fn stft_memory_bytes(win_len: usize, zero_pad: usize, n_bands: usize) -> f64 {
+    let nfft = (win_len * zero_pad) as f64;
+    nfft * 104.0 + win_len as f64 * 24.0 + n_bands as f64 * 128.0
+}
+
 impl StftFrontEnd {
     /// A front end for `bands` at `sample_rate_hz`. Errors on impossible settings.
     pub fn new(settings: StftSettings, sample_rate_hz: f64, bands: &[Band]) -> Result<Self> {
@@ -98,6 +105,14 @@ impl StftFrontEnd {
             return Err(Error::setting("bands", "no bands given"));
         }
         let win_len = win_len as usize;
+        let estimate = stft_memory_bytes(win_len, settings.zero_pad, bands.len());
+        crate::budget::check(
+            &format!(
+                "an STFT window of {win_len} samples × zero-pad {}",
+                settings.zero_pad
+            ),
+            estimate,
+        )?;
         let hop = ((win_len as f64) * (1.0 - settings.overlap))
             .round()
             .max(1.0) as usize;
@@ -289,6 +304,10 @@ fn peak_frequency(power: &[f64], k: usize) -> f64 {
 }
 
 impl FrontEnd for StftFrontEnd {
+    fn memory_bytes(&self) -> usize {
+        stft_memory_bytes(self.window.len(), self.zero_pad, self.bands.len()) as usize
+    }
+
     fn bands(&self) -> &[Band] {
         &self.bands
     }

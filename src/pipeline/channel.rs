@@ -30,6 +30,12 @@ pub struct ChannelAnalyzer {
     fragments: usize,
 }
 
+/// The onset search's lookahead and buffer cap, samples.
+fn onset_sizes(lookahead_s: f64, sample_rate_hz: f64) -> (usize, usize) {
+    let lookahead = (lookahead_s * sample_rate_hz).round().max(1.0) as usize;
+    (lookahead, lookahead.saturating_mul(20).max(1 << 16))
+}
+
 /// Samples fed to the front end between end-of-decay checks.
 const CHECK_SAMPLES: usize = 1024;
 
@@ -47,11 +53,11 @@ impl ChannelAnalyzer {
             .iter()
             .map(|b| b.hi_hz <= nyquist * (1.0 + 1e-12))
             .collect();
-        let lookahead = (config.onset_lookahead_s * sample_rate_hz).round().max(1.0) as usize;
+        let (lookahead, cap) = onset_sizes(config.onset_lookahead_s, sample_rate_hz);
         let onset = OnsetSettings {
             level_db: config.onset_level_db,
             lookahead_samples: lookahead,
-            max_buffer_samples: lookahead.saturating_mul(20).max(1 << 16),
+            max_buffer_samples: cap,
         };
         let lowest_hz = front_end
             .bands()
@@ -77,6 +83,14 @@ impl ChannelAnalyzer {
             fragments: 0,
             config,
         }
+    }
+
+    /// Bytes one analyzer holds besides its front end, at most: the onset buffer at its cap,
+    /// the new-hit watch, and per band its estimator's state (frame energies grow with the
+    /// decay: 16 bytes per frame and band on top of this).
+    pub fn buffer_bytes(sample_rate_hz: f64, n_bands: usize, config: &AnalysisConfig) -> usize {
+        let (lookahead, cap) = onset_sizes(config.onset_lookahead_s, sample_rate_hz);
+        cap * 8 + lookahead * 24 + n_bands * 256
     }
 
     fn max_decay_samples(&self) -> u64 {

@@ -124,6 +124,9 @@ struct WorkerReport {
     watermarks: Vec<(usize, u64)>,
 }
 
+/// Blocks alive at once at most: each worker's queue (4), the one it works on, the one read.
+const BLOCKS_IN_FLIGHT: f64 = 6.0;
+
 enum ToWorker {
     Block(Arc<Block>),
     End { truncated: bool },
@@ -154,13 +157,27 @@ pub fn run(
             .map(|n| n.get())
             .unwrap_or(1),
     );
+    let block_frames = config.block_frames.max(1);
+    // Memory, before anything proportional to the channel count is allocated: one front end
+    // tells its size, the analyzers' buffers are known, and blocks are shared by the workers.
+    let first = factory()?;
+    let per_channel = first.memory_bytes() as f64
+        + ChannelAnalyzer::buffer_bytes(info.sample_rate_hz, first.bands().len(), config) as f64;
+    let blocks = BLOCKS_IN_FLIGHT * block_frames as f64 * n_channels as f64 * 8.0;
+    crate::budget::check(
+        &format!("the analysis of {n_channels} channels"),
+        per_channel * n_channels as f64 + blocks,
+    )?;
+    let mut first = Some(first);
     let mut groups: Vec<Vec<(usize, ChannelAnalyzer)>> = (0..workers).map(|_| Vec::new()).collect();
     for (c, name) in info.channel_names.iter().enumerate() {
-        let fe = factory()?;
+        let fe = match first.take() {
+            Some(fe) => fe,
+            None => factory()?,
+        };
         let an = ChannelAnalyzer::new(name.clone(), info.sample_rate_hz, fe, *config);
         groups[c % workers].push((c, an));
     }
-    let block_frames = config.block_frames.max(1);
     let (row_tx, row_rx) = bounded::<WorkerReport>(64);
     std::thread::scope(|scope| -> Result<RunSummary> {
         let mut worker_txs: Vec<Sender<ToWorker>> = Vec::new();

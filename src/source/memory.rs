@@ -39,6 +39,10 @@ impl MemorySource {
 }
 
 impl Source for MemorySource {
+    fn duration_frames(&self) -> Option<u64> {
+        self.channels.first().map(|c| c.len() as u64)
+    }
+
     fn info(&self) -> &SignalInfo {
         &self.info
     }

@@ -119,6 +119,12 @@ pub trait Source: Send {
     /// Replaces the contents of `block` with up to `max_frames` sample frames.
     /// Returns `Ok(false)` (and an empty block) at the end of the input.
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
+
+    /// Sample frames the input holds in all, when its header or container says so (a WAV's
+    /// data chunk, a file in memory); `None` for streams of unknown length.
+    fn duration_frames(&self) -> Option<u64> {
+        None
+    }
 }
 
 // Implementations. Every source keeps the same error contract: all complete frames are delivered

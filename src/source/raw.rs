@@ -79,6 +79,9 @@ pub struct RawSource<R: Read + Send> {
     frames: FrameReader<R>,
 }
 
+/// Bytes a channel costs a source before any sample: its name and its place in the decoder.
+const RAW_BYTES_PER_CHANNEL: f64 = 64.0;
+
 impl<R: Read + Send> RawSource<R> {
     /// A raw source of `channels` channels at `fs_hz`. Errors (`Setting`) for a non-positive or
     /// non-finite rate or zero channels.
@@ -97,6 +100,15 @@ impl<R: Read + Send> RawSource<R> {
                 detail: "channel count: expected at least 1, got 0".into(),
             });
         }
+        // Names and the decoder's frame buffers, before they exist (`--channels 1e9` with a
+        // few bytes of input must not take the machine).
+        let estimate = channels as f64 * (RAW_BYTES_PER_CHANNEL + format.bytes() as f64);
+        crate::budget::check(&format!("{channels} raw channels"), estimate).map_err(|e| {
+            SourceError::Setting {
+                what: what.clone(),
+                detail: e.to_string(),
+            }
+        })?;
         Ok(Self {
             info: SignalInfo {
                 sample_rate_hz: fs_hz,

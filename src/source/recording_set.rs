@@ -331,6 +331,10 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
         info: super::SignalInfo,
     }
     impl Source for Renamed {
+        fn duration_frames(&self) -> Option<u64> {
+            self.inner.duration_frames()
+        }
+
         fn info(&self) -> &super::SignalInfo {
             &self.info
         }

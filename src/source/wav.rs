@@ -288,6 +288,11 @@ impl<R: Read + Send> Source for WavSource<R> {
         &self.info
     }
 
+    fn duration_frames(&self) -> Option<u64> {
+        let frame_bytes = (self.header.channels * self.header.bytes_per_sample) as u64;
+        self.header.data_bytes.map(|b| b / frame_bytes.max(1))
+    }
+
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
         self.frames.read_block(max_frames, block)
     }

@@ -177,6 +177,11 @@ impl GoyderFrontEnd {
 }
 
 impl FrontEnd for GoyderFrontEnd {
+    fn memory_bytes(&self) -> usize {
+        // The decay buffer (Goyder always buffers) plus per-band filters and frames.
+        self.max_samples.saturating_mul(8) + self.bands.len() * 512
+    }
+
     fn bands(&self) -> &[Band] {
         &self.bands
     }
