@@ -25,7 +25,7 @@ pub enum MethodArg {
 /// Arguments of `dampscope simulate`.
 #[derive(Clone, Debug, clap::Args)]
 pub struct SimulateArgs {
-    /// Plate model (TOML, FORMATS.md §3); default: the report's reference plate.
+    /// Plate model (TOML, docs/FORMATS.md §3); default: the report's reference plate.
     #[arg(long, value_name = "PATH")]
     pub model: Option<PathBuf>,
     /// Write a recording set to this directory.

@@ -143,9 +143,50 @@ fn progress_bar(enabled: bool, phases: u64) -> indicatif::ProgressBar {
     }
 }
 
+/// Sensors of a grid model (`None` for a sensor file, read later and counted as 1000).
+fn sensor_count(model: &Model) -> Option<usize> {
+    match &model.output.sensors {
+        crate::sim::model::SensorSpec::Grid { nx, ny } => Some(nx.saturating_mul(*ny)),
+        crate::sim::model::SensorSpec::File { .. } => None,
+    }
+}
+
+/// Bytes a simulation of `model` needs at most, estimated from its sizes before anything is
+/// allocated: the sparse stiffness and mass (81 couplings per dof), the shift-invert factor
+/// (banded bound: 9 (nz + 1)(min(nx, ny) + 1) per dof), the Lanczos basis (at most 2000
+/// vectors), and per sensor its FRF (complex, fmax/df + 1 lines) and impulse response
+/// (2 fmax/df samples), twice over while the recording set is written.
+pub fn memory_estimate_bytes(model: &Model) -> f64 {
+    let m = &model.mesh;
+    let (nx, ny, nz) = (m.nx as f64, m.ny as f64, m.nz as f64);
+    let dofs = 3.0 * (nx + 1.0) * (ny + 1.0) * (nz + 1.0);
+    let matrices = dofs * 81.0 * 12.0 * 2.0;
+    let factor = dofs * 9.0 * (nz + 1.0) * (nx.min(ny) + 1.0) * 8.0;
+    let basis = dofs * dofs.min(2000.0) * 8.0;
+    let lines = (model.output.fmax / model.output.df).max(1.0) + 1.0;
+    let sensors = sensor_count(model).unwrap_or(1000) as f64;
+    let outputs = sensors * (lines * 16.0 + 2.0 * lines * 8.0) * 2.0;
+    matrices + factor + basis + outputs
+}
+
 /// Simulates `model`: assembly, modes (if the method needs them), FRFs over 0…fmax at df,
 /// impulse responses.
 pub fn simulate(model: &Model, opts: &SimulateOptions) -> Result<SimulationResult, SimError> {
+    let estimate = memory_estimate_bytes(model);
+    crate::budget::check(
+        &format!(
+            "simulating a {}×{}×{} mesh with {} sensors",
+            model.mesh.nx,
+            model.mesh.ny,
+            model.mesh.nz,
+            sensor_count(model).map_or("listed".into(), |n| n.to_string())
+        ),
+        estimate,
+    )
+    .map_err(|e| SimError::InvalidValue {
+        key: "model size".into(),
+        message: e.to_string(),
+    })?;
     let t0 = Instant::now();
     let sys = assemble(model)?;
     let assembly_s = t0.elapsed().as_secs_f64();
