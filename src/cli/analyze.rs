@@ -77,16 +77,16 @@ pub struct PipelineArgs {
     #[command(flatten)]
     pub bands: BandArgs,
     /// Decay onset: first sample within this many dB of the peak.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = pipeline::DEFAULT_ONSET_LEVEL_DB)]
     pub onset_level_db: f64,
     /// End a decay after this many seconds (bounds memory on endless streams).
     #[arg(long, value_name = "S")]
     pub max_decay_s: Option<f64>,
     /// End a decay when every band has fallen this many dB below its peak.
-    #[arg(long, default_value_t = 100.0)]
+    #[arg(long, default_value_t = pipeline::DEFAULT_END_DROP_DB)]
     pub end_drop_db: f64,
     /// After a decay ends, a sample within this many dB of its peak starts the next one.
-    #[arg(long, default_value_t = 20.0)]
+    #[arg(long, default_value_t = pipeline::DEFAULT_RETRIGGER_DB)]
     pub retrigger_db: f64,
     /// During a decay, a sample that rises this many dB above the signal before it (and is
     /// within --retrigger-db of the peak) is a new hit and starts a new decay; `inf` never splits.

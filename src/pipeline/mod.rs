@@ -53,6 +53,16 @@ pub struct AnalysisConfig {
     pub block_frames: usize,
 }
 
+/// Default of [`AnalysisConfig::onset_level_db`]: a decay starts at its first sample within
+/// 20 dB of its peak.
+pub const DEFAULT_ONSET_LEVEL_DB: f64 = 20.0;
+
+/// Default of [`AnalysisConfig::end_drop_db`]: a decay ends once every band fell 100 dB.
+pub const DEFAULT_END_DROP_DB: f64 = 100.0;
+
+/// Default of [`AnalysisConfig::retrigger_db`]: a new decay starts within 20 dB of the last peak.
+pub const DEFAULT_RETRIGGER_DB: f64 = 20.0;
+
 /// Default of [`AnalysisConfig::retrigger_jump_db`]: 10 dB. A decaying sum of modes cannot rise
 /// that fast whatever its beating (see [`crate::frontend::onset::RetriggerWatch`]), and white
 /// noise would need a 12σ sample; hits 4 s apart over a −60 dB floor, merged before, are split.
@@ -69,11 +79,11 @@ impl Default for AnalysisConfig {
     fn default() -> Self {
         AnalysisConfig {
             estimate: EstimateSettings::default(),
-            onset_level_db: 20.0,
+            onset_level_db: DEFAULT_ONSET_LEVEL_DB,
             onset_lookahead_s: 0.1,
             max_decay_s: None,
-            end_drop_db: 100.0,
-            retrigger_db: 20.0,
+            end_drop_db: DEFAULT_END_DROP_DB,
+            retrigger_db: DEFAULT_RETRIGGER_DB,
             retrigger_jump_db: DEFAULT_RETRIGGER_JUMP_DB,
             block_frames: 4096,
         }
