@@ -184,12 +184,9 @@ fn nan_channel_is_flagged_and_the_other_channel_still_analysed() {
 
 #[test]
 fn recording_set_directory_is_analysed() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/reference/recording-set-example");
-    if !dir.is_dir() {
-        eprintln!("skipped: {} not found", dir.display());
-        return;
-    }
+    let dir =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/recording-set-example");
+    assert!(dir.is_dir(), "reference data missing: {}", dir.display());
     let out = dampscope(
         &[
             "analyze",

@@ -1,5 +1,5 @@
 //! Issue 4 acceptance: the IEC octave bank on pyrato's analytic room impulse responses
-//! (`../shared/reference/pyrato_tests/`, see its README; skipped with a message when absent).
+//! (`tests/data/pyrato/`, copied from shared/reference/pyrato_tests; a missing file fails).
 
 mod common;
 
@@ -16,17 +16,12 @@ use dampscope::frontend::octave_bank::{
 use dampscope::frontend::{Band, FrontEnd};
 use dampscope::pipeline::analyze_decay;
 
-fn reference(name: &str) -> Option<String> {
+fn reference(name: &str) -> String {
     let p = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/reference/pyrato_tests")
+        .join("tests/data/pyrato")
         .join(name);
-    match std::fs::read_to_string(&p) {
-        Ok(s) => Some(s),
-        Err(e) => {
-            eprintln!("SKIPPED: reference file {} not readable ({e})", p.display());
-            None
-        }
-    }
+    std::fs::read_to_string(&p)
+        .unwrap_or_else(|e| panic!("reference file {} not readable ({e})", p.display()))
 }
 
 fn numbers(line: &str) -> Vec<f64> {
@@ -69,9 +64,7 @@ fn octave(
 /// by accident, because every mode of this room decays at the same rate.)
 #[test]
 fn rigid_walls_rir_t20_t30_within_3_percent_where_modes_are_and_leakage_elsewhere() {
-    let Some(text) = reference("analytic_rir_rigid_walls.csv") else {
-        return;
-    };
+    let text = reference("analytic_rir_rigid_walls.csv");
     let x: Vec<f64> = text
         .lines()
         .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
@@ -130,9 +123,7 @@ fn rigid_walls_rir_t20_t30_within_3_percent_where_modes_are_and_leakage_elsewher
 /// why the ISO margin is the default.
 #[test]
 fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
-    let Some(text) = reference("analytic_rir_psnr50_2D.csv") else {
-        return;
-    };
+    let text = reference("analytic_rir_psnr50_2D.csv");
     let rows: Vec<Vec<f64>> = text.lines().map(numbers).collect();
     assert_eq!(rows.len(), 2);
     for (x, t60) in rows.iter().zip([1.0, 2.0]) {

@@ -1,19 +1,11 @@
-//! Cross-checks against pyrato's own reference results (shared/reference/pyrato_tests).
+//! Cross-checks against pyrato's own reference results (tests/data/pyrato, from shared/reference/pyrato_tests).
 
 use dampscope::decay::lundeby::{lundeby, LundebySettings};
 
-fn reference_dir() -> Option<std::path::PathBuf> {
-    let d =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference/pyrato_tests");
-    if d.is_dir() {
-        Some(d)
-    } else {
-        eprintln!(
-            "skipped: {} not found (shared/ must sit beside the crate)",
-            d.display()
-        );
-        None
-    }
+fn reference_dir() -> std::path::PathBuf {
+    let d = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/pyrato");
+    assert!(d.is_dir(), "reference data missing: {}", d.display());
+    d
 }
 
 fn read_matrix(path: &std::path::Path) -> Vec<Vec<f64>> {
@@ -31,7 +23,7 @@ fn read_matrix(path: &std::path::Path) -> Vec<Vec<f64>> {
 
 #[test]
 fn lundeby_matches_pyrato_intersection_time() {
-    let Some(dir) = reference_dir() else { return };
+    let dir = reference_dir();
     let rows = read_matrix(&dir.join("analytic_rir_psnr50_2D.csv"));
     let expected = read_matrix(&dir.join("intersection_time_2D.csv"));
     for (ch, rir) in rows.iter().enumerate() {

@@ -9,7 +9,10 @@ use dampscope::source::{
 };
 use proptest::prelude::*;
 
-const EXAMPLE: &str = "/work/shared/reference/recording-set-example";
+const EXAMPLE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/tests/data/recording-set-example"
+);
 
 fn drain(src: &mut dyn Source, block: usize) -> (Vec<Vec<f64>>, Option<SourceError>) {
     let mut out = vec![Vec::new(); src.info().channels()];
