@@ -159,42 +159,59 @@ impl OnsetDetector {
 }
 
 /// Watches a running decay for a new hit: a sample at least `jump` times the largest magnitude
-/// of the `window` samples that end `gap` samples before it, and at least `level` in magnitude.
+/// of the `window` samples that end (at least) `gap` samples before it, and at least `level`.
 ///
 /// Why this criterion: a hit's response rises from the old level within a quarter period of its
 /// lowest mode (the `gap`), so it is compared with what came before the rise. A decaying sum of
 /// modes cannot do that whatever its beating, once `window ≥ gap`: rising from a beat null by
 /// `jump` takes longer than the gap unless the window still holds the envelope before the null,
 /// which (decaying) is higher; a beat shorter than the window puts its earlier, higher maximum
-/// in it. Gaussian noise needs a 4σ → 12σ jump at 10 dB. Memory: `gap + window` entries.
+/// in it. Gaussian noise needs a 4σ → 12σ jump at 10 dB. Memory: one entry per block.
 #[derive(Clone, Debug)]
 pub struct RetriggerWatch {
-    window: usize,
-    gap: usize,
+    /// Samples per block: the window is kept as block maxima, so each sample costs a compare.
+    block: usize,
+    /// Blocks in the window, and blocks between the window and the current block.
+    window_blocks: usize,
+    gap_blocks: usize,
     jump: f64,
     level: f64,
     /// No test before this many samples (the decay's own peak and settling are not a new hit).
     grace: u64,
     seen: u64,
-    /// The last `gap` magnitudes, not yet in the window.
+    /// Largest magnitude of the current block so far, and its sample count.
+    block_max: f64,
+    block_fill: usize,
+    /// Index of the current block.
+    block_index: u64,
+    /// The last `gap_blocks` block maxima, not yet in the window.
     delay: std::collections::VecDeque<f64>,
-    /// (sample index, |x|) of the window, |x| strictly decreasing from front to back.
+    /// (block index, maximum) of the window's blocks, maxima strictly decreasing front to back.
     queue: std::collections::VecDeque<(u64, f64)>,
+    /// `jump` × the window's maximum (fixed within a block).
+    threshold: f64,
 }
 
 impl RetriggerWatch {
-    /// A watch comparing each sample with the `window_samples` ending `gap_samples` before it;
-    /// a rise of `jump_db` (amplitude dB) is a new hit.
+    /// A watch comparing each sample with the `window_samples` ending at least `gap_samples`
+    /// before it; a rise of `jump_db` (amplitude dB) is a new hit. The window is held in blocks
+    /// of an eighth of the gap, so the gap may grow by up to one block.
     pub fn new(window_samples: usize, gap_samples: usize, jump_db: f64) -> Self {
+        let block = (gap_samples / 8).max(1);
         RetriggerWatch {
-            window: window_samples.max(1),
-            gap: gap_samples,
-            delay: std::collections::VecDeque::new(),
+            block,
+            window_blocks: window_samples.max(1).div_ceil(block),
+            gap_blocks: gap_samples.div_ceil(block),
             jump: 10f64.powf(jump_db / 20.0),
             level: f64::INFINITY,
             grace: 0,
             seen: 0,
+            block_max: 0.0,
+            block_fill: 0,
+            block_index: 0,
+            delay: std::collections::VecDeque::new(),
             queue: std::collections::VecDeque::new(),
+            threshold: 0.0,
         }
     }
 
@@ -202,39 +219,59 @@ impl RetriggerWatch {
     /// `grace_samples` (the decay's onset buffer) are only remembered.
     pub fn restart(&mut self, level: f64, grace_samples: usize) {
         self.level = level;
-        self.grace = (grace_samples as u64).max((self.window + self.gap) as u64);
+        let span = (self.window_blocks + self.gap_blocks + 1) * self.block;
+        self.grace = grace_samples.max(span) as u64;
         self.seen = 0;
+        self.block_max = 0.0;
+        self.block_fill = 0;
+        self.block_index = 0;
         self.delay.clear();
         self.queue.clear();
+        self.threshold = 0.0;
+    }
+
+    /// Closes the current block: its maximum enters the delay line; the oldest delayed block
+    /// enters the window; blocks older than the window leave it.
+    fn close_block(&mut self) {
+        self.delay.push_back(self.block_max);
+        if self.delay.len() > self.gap_blocks {
+            let m = self.delay.pop_front().unwrap_or(0.0);
+            let k = self.block_index - self.gap_blocks as u64;
+            while self.queue.back().is_some_and(|&(_, v)| v <= m) {
+                self.queue.pop_back();
+            }
+            self.queue.push_back((k, m));
+        }
+        self.block_index += 1;
+        let oldest = self
+            .block_index
+            .saturating_sub((self.gap_blocks + self.window_blocks) as u64);
+        while self.queue.front().is_some_and(|&(k, _)| k < oldest) {
+            self.queue.pop_front();
+        }
+        self.threshold = self.jump * self.queue.front().map_or(0.0, |&(_, m)| m);
+        self.block_max = 0.0;
+        self.block_fill = 0;
     }
 
     /// Scans `samples`; returns the index of the first one that is a new hit (it and the rest
     /// are not consumed), or `None` when all were consumed.
     pub fn scan(&mut self, samples: &[f64]) -> Option<usize> {
+        if !self.jump.is_finite() {
+            // Splitting off: nothing to watch.
+            return None;
+        }
         for (i, &x) in samples.iter().enumerate() {
             let a = if x.is_finite() { x.abs() } else { 0.0 };
-            let n = self.seen;
-            // Window: samples n − gap − window .. n − gap − 1.
-            let oldest = n.saturating_sub((self.gap + self.window) as u64);
-            while self.queue.front().is_some_and(|&(k, _)| k < oldest) {
-                self.queue.pop_front();
+            if a >= self.level && a >= self.threshold && self.seen >= self.grace {
+                return Some(i);
             }
-            if n >= self.grace && a >= self.level {
-                let before = self.queue.front().map_or(0.0, |&(_, m)| m);
-                if a >= self.jump * before {
-                    return Some(i);
-                }
-            }
-            self.delay.push_back(a);
-            if self.delay.len() > self.gap {
-                let m = self.delay.pop_front().unwrap_or(0.0);
-                let k = n - self.gap as u64;
-                while self.queue.back().is_some_and(|&(_, v)| v <= m) {
-                    self.queue.pop_back();
-                }
-                self.queue.push_back((k, m));
-            }
+            self.block_max = self.block_max.max(a);
             self.seen += 1;
+            self.block_fill += 1;
+            if self.block_fill == self.block {
+                self.close_block();
+            }
         }
         None
     }

@@ -155,13 +155,7 @@ pub fn run(
     if n_channels == 0 {
         return Err(Error::setting("input", "no channels"));
     }
-    let mut seen = std::collections::HashSet::new();
-    if let Some(dup) = info.channel_names.iter().find(|n| !seen.insert(*n)) {
-        return Err(Error::setting(
-            "input",
-            format!("expected unique channel names, got {dup:?} twice"),
-        ));
-    }
+    crate::source::check_unique_names("input", &info.channel_names)?;
     let workers = n_channels.min(
         std::thread::available_parallelism()
             .map(|n| n.get())

@@ -156,7 +156,7 @@ impl<R: BufRead + Send> CsvSource<R> {
                 });
             }
         }
-        check_unique_names(&s.what, &s.info.channel_names)?;
+        super::check_unique_names(&s.what, &s.info.channel_names)?;
         // Every rate the input states must agree: a contradiction changes every number.
         let from_time = if s.time_column {
             Some(s.fs_from_time()?)
@@ -176,7 +176,7 @@ impl<R: BufRead + Send> CsvSource<R> {
             });
         };
         let tolerance = if s.time_column {
-            s.time_rate_uncertainty()
+            s.rate_uncertainty.max(FS_AGREEMENT)
         } else {
             FS_AGREEMENT
         };
@@ -275,11 +275,6 @@ impl<R: BufRead + Send> CsvSource<R> {
         self.last_time_resolution_s = res[n - 1];
         self.rate_uncertainty = (res[0] + res[n - 1]) / (t1 - t0);
         Ok(1.0 / dt)
-    }
-
-    /// The relative uncertainty of the rate from the time column, from its printing.
-    fn time_rate_uncertainty(&self) -> f64 {
-        self.rate_uncertainty.max(FS_AGREEMENT)
     }
 
     /// Replaces the channel names (for example by sensor ids). Errors when the count differs.
@@ -462,24 +457,6 @@ fn printed_resolution(text: &str) -> f64 {
     };
     let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
     10f64.powi(exponent - decimals)
-}
-
-/// Channel names must be unique: a repeated name would merge two sensors' results.
-pub(crate) fn check_unique_names(what: &str, names: &[String]) -> Result<(), SourceError> {
-    let mut seen = std::collections::HashSet::new();
-    for (k, n) in names.iter().enumerate() {
-        if !seen.insert(n) {
-            return Err(SourceError::Malformed {
-                what: what.to_string(),
-                format: "csv",
-                detail: format!(
-                    "expected unique channel names, got {n:?} again in column {}",
-                    k + 1
-                ),
-            });
-        }
-    }
-    Ok(())
 }
 
 impl<R: BufRead + Send> Source for CsvSource<R> {

@@ -170,3 +170,20 @@ pub(crate) fn end_of_input(
     }
     Ok(false)
 }
+
+/// Channel names must be unique: a repeated name would merge two sensors' results.
+pub fn check_unique_names(what: &str, names: &[String]) -> Result<(), SourceError> {
+    let mut seen = std::collections::HashSet::new();
+    for (k, n) in names.iter().enumerate() {
+        if !seen.insert(n) {
+            return Err(SourceError::Setting {
+                what: what.to_string(),
+                detail: format!(
+                    "expected unique channel names, got {n:?} again as channel {}",
+                    k + 1
+                ),
+            });
+        }
+    }
+    Ok(())
+}
