@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 
 use crate::sim::model::Model;
-use crate::sim::simulate::{simulate, Method, SimulateOptions, SimulationResult};
+use crate::sim::simulate::{simulate_stream, Method, SimulateOptions, STREAM_BLOCK_FRAMES};
+use crate::sim::system::SensorWeights;
 use crate::source::recording_set::{
-    write_recording_set, DecayKind, Excitation, RecordingMeta, Sensor,
+    write_recording_set_streamed, DecayKind, Excitation, RecordingMeta, Sensor,
 };
-use crate::source::write_wav_f32;
+use crate::source::{Block, Source, WavStreamWriter};
 
 /// FRF method on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
@@ -91,10 +92,12 @@ fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
     })
 }
 
-/// The recording-set pieces of a result: sensors (z, mid-plane) and excitation rows.
-pub fn recording_parts(r: &SimulationResult) -> (Vec<Sensor>, Vec<Excitation>) {
-    let sensors = r
-        .sensors
+/// The recording-set pieces of a simulation: sensors (z, mid-plane) and excitation rows.
+pub fn recording_parts(
+    sensors: &[SensorWeights],
+    excitation: Option<&crate::sim::model::Excitation>,
+) -> (Vec<Sensor>, Vec<Excitation>) {
+    let sensors = sensors
         .iter()
         .map(|s| Sensor {
             id: s.id.clone(),
@@ -104,8 +107,7 @@ pub fn recording_parts(r: &SimulationResult) -> (Vec<Sensor>, Vec<Excitation>) {
             dir: "z".into(),
         })
         .collect();
-    let excitation = r
-        .excitation
+    let excitation = excitation
         .iter()
         .map(|e| Excitation {
             x_m: e.x,
@@ -118,9 +120,9 @@ pub fn recording_parts(r: &SimulationResult) -> (Vec<Sensor>, Vec<Excitation>) {
 }
 
 /// The `meta.json` of a simulated set.
-pub fn meta(r: &SimulationResult, snr_db: Option<f64>) -> RecordingMeta {
+pub fn meta(fs_hz: f64, snr_db: Option<f64>) -> RecordingMeta {
     RecordingMeta {
-        fs: Some(r.fs_hz),
+        fs: Some(fs_hz),
         kind: DecayKind::ImpulseResponse,
         quantity: Some("acceleration".into()),
         unit: Some("m/s^2 per N s".into()),
@@ -129,11 +131,11 @@ pub fn meta(r: &SimulationResult, snr_db: Option<f64>) -> RecordingMeta {
     }
 }
 
-/// Runs `dampscope simulate`.
+/// Runs `dampscope simulate`: the responses go to disk (or standard output) block by block.
 pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let model = load_model(args.model.as_deref())?;
     let opts = args.options();
-    let r = simulate(&model, &opts).context("simulation")?;
+    let mut r = simulate_stream(&model, &opts).context("simulation")?;
     if args.timings {
         let t = &r.timings;
         eprintln!(
@@ -143,34 +145,41 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
             r.modes_used,
             t.reduction_s,
             t.frf_s,
-            r.frf.frequencies_hz.len(),
-            r.frf.n_sensors(),
+            r.n_frequencies,
+            r.sensors.len(),
             t.impulse_s
         );
     }
+    let fs = r.fs_hz;
+    if fs.fract() != 0.0 || fs > f64::from(u32::MAX) {
+        bail!("a WAV header needs a whole number of Hz: fs = 2·fmax = {fs}");
+    }
     if args.stdout {
-        let fs = r.fs_hz;
-        if fs.fract() != 0.0 || fs > f64::from(u32::MAX) {
-            bail!("a WAV header needs a whole number of Hz: fs = 2·fmax = {fs}");
-        }
         let stdout = io::stdout();
         let mut w = BufWriter::new(stdout.lock());
-        write_wav_f32(&mut w, fs as u32, &r.impulse_responses)
-            .context("writing the WAV to standard output")?;
+        let frames = r.source.duration_frames().unwrap_or(0);
+        let mut out = WavStreamWriter::new(&mut w, fs as u32, r.sensors.len(), frames)
+            .context("writing the WAV header to standard output")?;
+        let mut block = Block::default();
+        while r.source.read_block(STREAM_BLOCK_FRAMES, &mut block)? {
+            out.write_block(&block)
+                .context("writing the WAV to standard output")?;
+        }
+        out.finish().context("writing the WAV to standard output")?;
         w.flush().context("writing standard output")?;
         return Ok(());
     }
     let Some(dir) = &args.out else {
         bail!("give --out DIR or --stdout");
     };
-    let (sensors, excitation) = recording_parts(&r);
-    write_recording_set(
+    let (sensors, excitation) = recording_parts(&r.sensors, Some(&r.excitation));
+    write_recording_set_streamed(
         dir,
-        &meta(&r, args.snr_db),
+        &meta(fs, args.snr_db),
         &sensors,
         &excitation,
-        r.fs_hz,
-        &r.impulse_responses,
+        &mut r.source,
+        STREAM_BLOCK_FRAMES,
     )
     .with_context(|| format!("writing the recording set {}", dir.display()))?;
     Ok(())

@@ -2,6 +2,7 @@
 
 pub mod assembly;
 pub mod eigen;
+pub mod factored;
 pub mod element;
 pub mod error;
 pub mod frf;
@@ -10,6 +11,7 @@ pub mod mesh;
 pub mod model;
 pub mod reduced;
 pub mod simulate;
+pub mod stream;
 pub mod system;
 pub mod truncation;
 pub mod validate;

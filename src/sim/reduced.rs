@@ -30,6 +30,7 @@ use faer::{Accum, Mat, MatRef, Par, Side};
 
 use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
 use super::system::FeSystem;
+use super::factored::FactoredFrf;
 
 /// How the reduced system is solved per frequency.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -427,35 +428,50 @@ impl ReducedModel {
 
     /// Receptance at every sensor and frequency.
     pub fn frf(&self, freqs_hz: &[f64], how: ReducedSolve) -> Result<Frf, FrfError> {
+        Ok(self.factored_frf(freqs_hz, how)?.to_frf())
+    }
+
+    /// Receptance as modal responses × sensor weights, for streaming many sensors.
+    pub fn factored_frf(
+        &self,
+        freqs_hz: &[f64],
+        how: ReducedSolve,
+    ) -> Result<FactoredFrf, FrfError> {
         validate_frequencies(freqs_hz)?;
-        let out = if how == ReducedSolve::Auto && self.frequency_independent() {
-            match self.frf_diagonalised(freqs_hz)? {
-                Some(out) => out,
-                None => self.frf_lu(freqs_hz)?,
-            }
+        let diagonalised = if how == ReducedSolve::Auto && self.frequency_independent() {
+            self.frf_diagonalised(freqs_hz)?
         } else {
-            self.frf_lu(freqs_hz)?
+            None
         };
-        Ok(Frf {
+        let (modal, weights) = match diagonalised {
+            Some(parts) => parts,
+            None => self.frf_lu(freqs_hz)?,
+        };
+        Ok(FactoredFrf {
             frequencies_hz: freqs_hz.to_vec(),
             sensor_ids: self.sensor_ids.clone(),
-            receptance_m_per_n: out,
+            modal,
+            weights,
         })
     }
 
-    fn frf_lu(&self, freqs_hz: &[f64]) -> Result<Mat<c64>, FrfError> {
+    /// Reduced coordinates by LU per frequency (n_freq × m) and the sensor rows of the basis.
+    fn frf_lu(&self, freqs_hz: &[f64]) -> Result<(Mat<c64>, Mat<c64>), FrfError> {
         let q = self.q_by_lu(freqs_hz)?;
         let svc = Mat::<c64>::from_fn(self.sv.nrows(), self.sv.ncols(), |i, j| {
             c64::new(self.sv[(i, j)], 0.0)
         });
-        // (n_freq × m) × (m × n_sensors)
-        Ok(q.transpose() * svc.transpose())
+        Ok((q.transpose().to_owned(), svc))
     }
 
     /// The constant-K̂_c path: K̂_c − ω²M̂ with M̂ = L Lᵀ; L⁻¹ K̂_c L⁻ᵀ = X Λ X⁻¹, so
-    /// q(ω) = L⁻ᵀ X (Λ − ω²)⁻¹ X⁻¹ L⁻¹ b. Returns `None` when the eigenvectors are too
+    /// q(ω) = L⁻ᵀ X (Λ − ω²)⁻¹ X⁻¹ L⁻¹ b, returned as (Λ − ω²)⁻¹ X⁻¹ L⁻¹ b per frequency and
+    /// the sensor rows S V L⁻ᵀ X. Returns `None` when the eigenvectors are too
     /// ill-conditioned to trust (the caller then falls back to LU per frequency).
-    fn frf_diagonalised(&self, freqs_hz: &[f64]) -> Result<Option<Mat<c64>>, FrfError> {
+    fn frf_diagonalised(
+        &self,
+        freqs_hz: &[f64],
+    ) -> Result<Option<(Mat<c64>, Mat<c64>)>, FrfError> {
         let m = self.size;
         let llt = match self.m_hat.llt(Side::Lower) {
             Ok(l) => l,
@@ -516,6 +532,6 @@ impl ReducedModel {
             let w = 2.0 * std::f64::consts::PI * freqs_hz[k];
             y[(i, 0)] / (lam[i] - c64::new(w * w, 0.0))
         });
-        Ok(Some(&r * p.transpose()))
+        Ok(Some((r, p)))
     }
 }

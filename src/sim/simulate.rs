@@ -12,7 +12,9 @@ use super::impulse::impulse_response;
 use super::model::{Excitation, Model};
 use super::reduced::{BasisOptions, ReducedModel, ReducedSolve};
 use super::system::{FeSystem, SensorWeights};
-use super::truncation::{truncated_frf, ModalDamping};
+use super::factored::FactoredFrf;
+use super::stream::{streamed_bytes, SimulatedSource};
+use super::truncation::{truncated_factored_frf, ModalDamping};
 use crate::source::noise::GaussianNoise;
 
 impl From<FrfError> for SimError {
@@ -151,28 +153,36 @@ fn sensor_count(model: &Model) -> Option<usize> {
     }
 }
 
-/// Bytes a simulation of `model` needs at most, estimated from its sizes before anything is
-/// allocated: the sparse stiffness and mass (81 couplings per dof), the shift-invert factor
-/// (banded bound: 9 (nz + 1)(min(nx, ny) + 1) per dof), the Lanczos basis (at most 2000
-/// vectors), and per sensor its FRF (complex, fmax/df + 1 lines) and impulse response
-/// (2 fmax/df samples), twice over while the recording set is written.
+/// Bytes a simulation of `model` needs at most when it holds every output (see
+/// [`memory_estimate`]).
 pub fn memory_estimate_bytes(model: &Model) -> f64 {
+    memory_estimate(model, true)
+}
+
+/// Bytes a simulation of `model` needs, estimated from its sizes before anything is allocated:
+/// the sparse stiffness and mass (81 couplings per dof), the shift-invert factor (banded bound:
+/// 9 (nz + 1)(min(nx, ny) + 1) per dof), the Lanczos basis (at most 2000 vectors), and, when
+/// `held_outputs`, per sensor its FRF (complex, fmax/df + 1 lines) and impulse response
+/// (2 fmax/df samples), twice over while the recording set is written. A streamed simulation is
+/// checked again once its basis size is known ([`streamed_bytes`]).
+pub fn memory_estimate(model: &Model, held_outputs: bool) -> f64 {
     let m = &model.mesh;
     let (nx, ny, nz) = (m.nx as f64, m.ny as f64, m.nz as f64);
     let dofs = 3.0 * (nx + 1.0) * (ny + 1.0) * (nz + 1.0);
     let matrices = dofs * 81.0 * 12.0 * 2.0;
     let factor = dofs * 9.0 * (nz + 1.0) * (nx.min(ny) + 1.0) * 8.0;
     let basis = dofs * dofs.min(2000.0) * 8.0;
+    if !held_outputs {
+        return matrices + factor + basis;
+    }
     let lines = (model.output.fmax / model.output.df).max(1.0) + 1.0;
     let sensors = sensor_count(model).unwrap_or(1000) as f64;
     let outputs = sensors * (lines * 16.0 + 2.0 * lines * 8.0) * 2.0;
     matrices + factor + basis + outputs
 }
 
-/// Simulates `model`: assembly, modes (if the method needs them), FRFs over 0…fmax at df,
-/// impulse responses.
-pub fn simulate(model: &Model, opts: &SimulateOptions) -> Result<SimulationResult, SimError> {
-    let estimate = memory_estimate_bytes(model);
+/// Refuses `model` when `estimate` bytes exceed the process memory budget.
+fn check_budget(model: &Model, estimate: f64) -> Result<(), SimError> {
     crate::budget::check(
         &format!(
             "simulating a {}×{}×{} mesh with {} sensors",
@@ -186,7 +196,13 @@ pub fn simulate(model: &Model, opts: &SimulateOptions) -> Result<SimulationResul
     .map_err(|e| SimError::InvalidValue {
         key: "model size".into(),
         message: e.to_string(),
-    })?;
+    })
+}
+
+/// Simulates `model`: assembly, modes (if the method needs them), FRFs over 0…fmax at df,
+/// impulse responses.
+pub fn simulate(model: &Model, opts: &SimulateOptions) -> Result<SimulationResult, SimError> {
+    check_budget(model, memory_estimate(model, true))?;
     let t0 = Instant::now();
     let sys = assemble(model)?;
     let assembly_s = t0.elapsed().as_secs_f64();
@@ -194,6 +210,21 @@ pub fn simulate(model: &Model, opts: &SimulateOptions) -> Result<SimulationResul
     r.timings.assembly_s = assembly_s;
     r.excitation = Some(model.excitation.clone());
     Ok(r)
+}
+
+/// The frequency responses as a method leaves them: held per sensor (direct) or factored.
+enum FrfParts {
+    Held(Frf),
+    Factored(FactoredFrf),
+}
+
+impl FrfParts {
+    fn into_frf(self) -> Frf {
+        match self {
+            FrfParts::Held(f) => f,
+            FrfParts::Factored(f) => f.to_frf(),
+        }
+    }
 }
 
 /// Simulates an assembled system; `modes` may be given (else computed as the method needs).
@@ -204,8 +235,118 @@ pub fn simulate_system(
     df_hz: f64,
     opts: &SimulateOptions,
 ) -> Result<SimulationResult, SimError> {
-    let freqs = frequency_grid(fmax_hz, df_hz)?;
     let pb = progress_bar(opts.progress, 3);
+    let (parts, modes_used, mut timings) = frf_parts(sys, modes, fmax_hz, df_hz, opts, &pb)?;
+    let frf = parts.into_frf();
+    pb.set_message("impulse responses");
+    let t = Instant::now();
+    let irs = impulse_responses(&frf, fmax_hz, opts.snr_db, opts.seed)?;
+    timings.impulse_s = t.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    Ok(SimulationResult {
+        fs_hz: 2.0 * fmax_hz,
+        frf,
+        impulse_responses: irs,
+        sensors: sys.sensors.clone(),
+        excitation: None,
+        modes_used,
+        timings,
+    })
+}
+
+/// A simulation served as a stream of impulse responses ([`simulate_stream`]).
+pub struct StreamedSimulation {
+    /// The impulse responses of every sensor, block by block.
+    pub source: SimulatedSource,
+    /// Sample rate, Hz (= 2 fmax).
+    pub fs_hz: f64,
+    /// Number of FRF lines (0, df, …, fmax).
+    pub n_frequencies: usize,
+    /// The sensors (ids, positions).
+    pub sensors: Vec<SensorWeights>,
+    /// The excitation of the model.
+    pub excitation: Excitation,
+    /// How many modes the method used (0 for the direct method).
+    pub modes_used: usize,
+    /// Phase times (`impulse_s`: the basis-vector signals and the noise scan).
+    pub timings: Timings,
+}
+
+/// Simulates `model` like [`simulate`] but leaves the impulse responses as a [`Source`]: the
+/// fast and truncated methods never hold sensors × samples (a recording set of any sensor grid
+/// is written block by block); the direct method holds them, within the memory budget.
+///
+/// [`Source`]: crate::source::Source
+pub fn simulate_stream(
+    model: &Model,
+    opts: &SimulateOptions,
+) -> Result<StreamedSimulation, SimError> {
+    let held = opts.method == Method::Direct;
+    check_budget(model, memory_estimate(model, held))?;
+    let t0 = Instant::now();
+    let sys = assemble(model)?;
+    let assembly_s = t0.elapsed().as_secs_f64();
+    let (fmax_hz, df_hz) = (model.output.fmax, model.output.df);
+    let pb = progress_bar(opts.progress, 3);
+    let (parts, modes_used, mut timings) = frf_parts(&sys, None, fmax_hz, df_hz, opts, &pb)?;
+    timings.assembly_s = assembly_s;
+    pb.set_message("impulse responses");
+    let t = Instant::now();
+    let (source, n_frequencies) = match parts {
+        FrfParts::Held(frf) => {
+            let irs = impulse_responses(&frf, fmax_hz, opts.snr_db, opts.seed)?;
+            let info = crate::source::SignalInfo {
+                sample_rate_hz: 2.0 * fmax_hz,
+                channel_names: frf.sensor_ids.clone(),
+            };
+            let n = frf.frequencies_hz.len();
+            (SimulatedSource::held(info, irs)?, n)
+        }
+        FrfParts::Factored(f) => {
+            let n = f.frequencies_hz.len();
+            let samples = 2 * (n - 1);
+            crate::budget::check(
+                &format!(
+                    "streaming {} sensors from {} basis vectors",
+                    f.n_sensors(),
+                    f.basis_size()
+                ),
+                streamed_bytes(f.n_sensors(), f.basis_size(), samples, STREAM_BLOCK_FRAMES),
+            )
+            .map_err(|e| SimError::InvalidValue {
+                key: "model size".into(),
+                message: e.to_string(),
+            })?;
+            let src = SimulatedSource::from_factored(&f, fmax_hz, opts.snr_db, opts.seed)?;
+            (src, n)
+        }
+    };
+    timings.impulse_s = t.elapsed().as_secs_f64();
+    pb.finish_and_clear();
+    Ok(StreamedSimulation {
+        source,
+        fs_hz: 2.0 * fmax_hz,
+        n_frequencies,
+        sensors: sys.sensors.clone(),
+        excitation: model.excitation.clone(),
+        modes_used,
+        timings,
+    })
+}
+
+/// Sample frames per block that callers of [`simulate_stream`] are expected to read.
+pub const STREAM_BLOCK_FRAMES: usize = 4096;
+
+/// The FRF of `sys` by the method of `opts`, with the modes it used and the phase times.
+fn frf_parts(
+    sys: &FeSystem,
+    modes: Option<&Modes>,
+    fmax_hz: f64,
+    df_hz: f64,
+    opts: &SimulateOptions,
+    pb: &indicatif::ProgressBar,
+) -> Result<(FrfParts, usize, Timings), SimError> {
+    let freqs = frequency_grid(fmax_hz, df_hz)?;
     let mut timings = Timings::default();
     let mut owned = None;
     let mut get_modes = |req: ModeRequest, timings: &mut Timings| -> Result<(), SimError> {
@@ -217,13 +358,13 @@ pub fn simulate_system(
         }
         Ok(())
     };
-    let (frf, modes_used) = match &opts.method {
+    let (parts, modes_used) = match &opts.method {
         Method::Direct => {
             pb.set_message("direct FRF");
             let t = Instant::now();
             let f = direct_frf(sys, &freqs)?;
             timings.frf_s = t.elapsed().as_secs_f64();
-            (f, 0)
+            (FrfParts::Held(f), 0)
         }
         Method::Fast => {
             if !(opts.mode_cutoff_factor.is_finite() && opts.mode_cutoff_factor >= 1.0) {
@@ -255,9 +396,9 @@ pub fn simulate_system(
             pb.inc(1);
             pb.set_message("fast FRF");
             let t = Instant::now();
-            let f = red.frf(&freqs, ReducedSolve::Auto)?;
+            let f = red.factored_frf(&freqs, ReducedSolve::Auto)?;
             timings.frf_s = t.elapsed().as_secs_f64();
-            (f, m.frequencies_hz.len())
+            (FrfParts::Factored(f), m.frequencies_hz.len())
         }
         Method::Truncated(keep) => {
             let highest = keep.iter().copied().max().unwrap_or(0);
@@ -272,7 +413,7 @@ pub fn simulate_system(
                 Some(d) => ModalDamping::Ratios(d.clone()),
                 None => ModalDamping::StrainEnergy,
             };
-            let f = truncated_frf(
+            let f = truncated_factored_frf(
                 sys,
                 &m.frequencies_hz,
                 m.shapes.as_ref(),
@@ -281,24 +422,11 @@ pub fn simulate_system(
                 &freqs,
             )?;
             timings.frf_s = t.elapsed().as_secs_f64();
-            (f, keep.len())
+            (FrfParts::Factored(f), keep.len())
         }
     };
     pb.inc(1);
-    pb.set_message("impulse responses");
-    let t = Instant::now();
-    let irs = impulse_responses(&frf, fmax_hz, opts.snr_db, opts.seed)?;
-    timings.impulse_s = t.elapsed().as_secs_f64();
-    pb.finish_and_clear();
-    Ok(SimulationResult {
-        fs_hz: 2.0 * fmax_hz,
-        frf,
-        impulse_responses: irs,
-        sensors: sys.sensors.clone(),
-        excitation: None,
-        modes_used,
-        timings,
-    })
+    Ok((parts, modes_used, timings))
 }
 
 /// Impulse response of every sensor from its accelerance, with optional peak-SNR noise

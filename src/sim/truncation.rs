@@ -14,6 +14,7 @@
 
 use faer::{c64, Mat, MatRef};
 
+use super::factored::FactoredFrf;
 use super::frf::{validate_frequencies, validate_system, Frf, FrfError};
 use super::reduced::validate_modes;
 use super::system::FeSystem;
@@ -84,6 +85,26 @@ pub fn truncated_frf(
     damping: &ModalDamping,
     freqs_hz: &[f64],
 ) -> Result<Frf, FrfError> {
+    truncated_factored_frf(
+        sys,
+        frequencies_hz_modes,
+        shapes,
+        keep_1based,
+        damping,
+        freqs_hz,
+    )
+    .map(|f| f.to_frf())
+}
+
+/// [`truncated_frf`] as modal responses × sensor weights (one basis vector per kept mode).
+pub fn truncated_factored_frf(
+    sys: &FeSystem,
+    frequencies_hz_modes: &[f64],
+    shapes: MatRef<'_, f64>,
+    keep_1based: &[usize],
+    damping: &ModalDamping,
+    freqs_hz: &[f64],
+) -> Result<FactoredFrf, FrfError> {
     validate_system(sys)?;
     validate_modes(sys, frequencies_hz_modes, shapes)?;
     validate_frequencies(freqs_hz)?;
@@ -121,18 +142,18 @@ pub fn truncated_frf(
             .collect();
         modes.push((k, visc, part, at_sensors));
     }
-    let out = Mat::<c64>::from_fn(freqs_hz.len(), sys.sensors.len(), |kf, s| {
+    let modal = Mat::<c64>::from_fn(freqs_hz.len(), modes.len(), |kf, i| {
         let w = 2.0 * std::f64::consts::PI * freqs_hz[kf];
-        modes
-            .iter()
-            .map(|(k, visc, part, at)| {
-                c64::new(at[s] * part, 0.0) / (*k + c64::new(-w * w, w * visc))
-            })
-            .sum()
+        let (k, visc, part, _) = &modes[i];
+        c64::new(*part, 0.0) / (*k + c64::new(-w * w, w * visc))
     });
-    Ok(Frf {
+    let weights = Mat::<c64>::from_fn(sys.sensors.len(), modes.len(), |s, i| {
+        c64::new(modes[i].3[s], 0.0)
+    });
+    Ok(FactoredFrf {
         frequencies_hz: freqs_hz.to_vec(),
         sensor_ids: sys.sensors.iter().map(|s| s.id.clone()).collect(),
-        receptance_m_per_n: out,
+        modal,
+        weights,
     })
 }

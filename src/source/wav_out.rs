@@ -11,6 +11,9 @@ use super::Block;
 
 /// Bytes per sample of the written format (32-bit float).
 const BYTES_PER_SAMPLE: u64 = 4;
+/// Most channels a 32-bit float WAV can hold: its block size (channels × 4 bytes) is a 16-bit
+/// field.
+pub const MAX_FLOAT_WAV_CHANNELS: usize = u16::MAX as usize / BYTES_PER_SAMPLE as usize;
 /// Bytes of the RIFF payload that are not sample data: "WAVE", fmt chunk (8 + 18), fact chunk
 /// (8 + 4) and the data chunk header (8).
 const HEADER_OVERHEAD: u64 = 4 + 8 + 18 + 8 + 4 + 8;
@@ -26,12 +29,12 @@ fn float_wav_header(sample_rate_hz: u32, n_channels: usize, n_frames: u64) -> io
     if n_channels == 0 {
         return Err(invalid("WAV needs at least 1 channel, got 0".into()));
     }
-    let channels = u16::try_from(n_channels).map_err(|_| {
-        invalid(format!(
-            "WAV holds at most {} channels, got {n_channels}",
-            u16::MAX
-        ))
-    })?;
+    if n_channels > MAX_FLOAT_WAV_CHANNELS {
+        return Err(invalid(format!(
+            "a 32-bit float WAV holds at most {MAX_FLOAT_WAV_CHANNELS} channels (its 16-bit block size), got {n_channels}"
+        )));
+    }
+    let channels = n_channels as u16;
     if sample_rate_hz == 0 {
         return Err(invalid("WAV sample rate must be positive, got 0 Hz".into()));
     }
@@ -172,11 +175,13 @@ impl<W: Write> WavStreamWriter<W> {
                 self.written_frames + frames as u64
             )));
         }
-        // Convert in bounded chunks so that a huge block does not double its memory.
-        const CHUNK_FRAMES: usize = 8192;
+        // Convert in chunks of at most CHUNK_BYTES so that a huge block (or thousands of
+        // channels) does not double its memory.
+        const CHUNK_BYTES: usize = 4 << 20;
+        let chunk_frames = (CHUNK_BYTES / (4 * self.n_channels)).max(1);
         let mut start = 0;
         while start < frames {
-            let end = (start + CHUNK_FRAMES).min(frames);
+            let end = (start + chunk_frames).min(frames);
             self.buf.clear();
             interleave_f32(&block.channels, start, end, &mut self.buf);
             self.out.write_all(&self.buf)?;
@@ -258,5 +263,19 @@ mod tests {
         assert!(write_wav_f32(Vec::new(), 0, &[vec![1.0]]).is_err());
         assert!(write_wav_f32(Vec::new(), 100, &[vec![1.0], vec![]]).is_err());
         assert!(WavStreamWriter::new(Vec::new(), 100, 2, u64::MAX / 2).is_err());
+    }
+
+    /// Found writing a 60 000-sensor recording set: the 16-bit block size wrapped and hound
+    /// refused the file ("sample bits exceeds size of sample"). The most channels still give a
+    /// file hound reads; one more is an error, not a corrupt header.
+    #[test]
+    fn regression_block_size_of_many_channels_never_wraps() {
+        let chans = vec![vec![0.25]; MAX_FLOAT_WAV_CHANNELS];
+        let mut bytes = Vec::new();
+        write_wav_f32(&mut bytes, 100, &chans).unwrap();
+        let r = hound::WavReader::new(std::io::Cursor::new(bytes)).unwrap();
+        assert_eq!(r.spec().channels as usize, MAX_FLOAT_WAV_CHANNELS);
+        let e = WavStreamWriter::new(Vec::new(), 100, MAX_FLOAT_WAV_CHANNELS + 1, 1).unwrap_err();
+        assert!(e.to_string().contains("at most 16383"), "{e}");
     }
 }
