@@ -91,5 +91,9 @@ fn streamed_fast_viscoelastic_equals_held() {
 
 #[test]
 fn streamed_truncated_equals_held_with_noise() {
-    streamed_equals_held(&coarse_plate(), Method::Truncated(vec![1, 3, 7]), Some(30.0));
+    streamed_equals_held(
+        &coarse_plate(),
+        Method::Truncated(vec![1, 3, 7]),
+        Some(30.0),
+    );
 }

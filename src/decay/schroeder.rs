@@ -1,9 +1,11 @@
 //! Online backward-integrated Schroeder curve.
 //!
-//! EDC(t_k) = Σ_{m ≥ k} e_m = E_total − Σ_{m < k} e_m. The forward prefix sums are kept in
-//! double-double form (value + Neumaier compensation), so that the subtraction E_total − S_{k−1}
-//! stays accurate deep into the decay, where it cancels catastrophically in plain f64
-//! (at −60 dB the result is 10⁻⁶ E_total).
+//! EDC(t_k) = Σ_{m ≥ k} e_m. Frames arrive one by one and the total E_total is kept as they come
+//! (in double-double form, value + Neumaier compensation); the curve itself is summed backwards
+//! over the stored frame energies when it is asked for, which is exact to rounding deep into the
+//! decay (a forward form E_total − S_{k−1} cancels catastrophically there: at −60 dB the result
+//! is 10⁻⁶ E_total) and keeps 16 bytes per frame (energy and frequency) instead of 32 with
+//! stored prefix sums: 100 000 bands of one decay fit in the memory budget.
 
 use super::estimate::{estimate_from_curve, DecayEstimate, EstimateSettings};
 use super::DecayEstimator;
@@ -45,8 +47,8 @@ impl CompensatedSum {
 
 /// Online Schroeder integrator for one band of one channel.
 ///
-/// `push_frame` is O(1); the memory is the frame sequence (energy, frequency and prefix sum per
-/// frame). The curve, and estimates from it, are available at any time.
+/// `push_frame` is O(1); the memory is the frame sequence (energy and frequency per frame). The
+/// curve (O(frames)), and estimates from it, are available at any time.
 #[derive(Clone, Debug)]
 pub struct OnlineSchroeder {
     frame_period_s: f64,
@@ -54,8 +56,6 @@ pub struct OnlineSchroeder {
     settings: EstimateSettings,
     energies: Vec<f64>,
     frequencies_hz: Vec<f64>,
-    /// prefix[k] = Σ_{m < k} e_m; prefix[0] = 0.
-    prefix: Vec<CompensatedSum>,
     running: CompensatedSum,
 }
 
@@ -68,7 +68,6 @@ impl OnlineSchroeder {
             settings,
             energies: Vec::new(),
             frequencies_hz: Vec::new(),
-            prefix: vec![CompensatedSum::default()],
             running: CompensatedSum::default(),
         }
     }
@@ -78,14 +77,22 @@ impl OnlineSchroeder {
         self.running.value()
     }
 
-    /// EDC at frame `k` (k < frames): Σ_{m ≥ k} e_m, as E_total − S_{k−1}.
+    /// EDC at frame `k` (k < frames): Σ_{m ≥ k} e_m, summed backwards with compensation.
     pub fn edc_at(&self, k: usize) -> f64 {
-        self.running.minus(&self.prefix[k]).max(0.0)
+        let mut acc = CompensatedSum::default();
+        self.energies[k..].iter().rev().for_each(|&e| acc.add(e));
+        acc.value()
     }
 
-    /// The whole (unnormalised) energy decay curve so far.
+    /// The whole (unnormalised) energy decay curve so far, summed backwards with compensation.
     pub fn edc(&self) -> Vec<f64> {
-        (0..self.energies.len()).map(|k| self.edc_at(k)).collect()
+        let mut edc = vec![0.0; self.energies.len()];
+        let mut acc = CompensatedSum::default();
+        for (k, &e) in self.energies.iter().enumerate().rev() {
+            acc.add(e);
+            edc[k] = acc.value();
+        }
+        edc
     }
 
     /// The frame energies so far.
@@ -127,7 +134,6 @@ impl DecayEstimator for OnlineSchroeder {
         self.energies.push(e);
         self.frequencies_hz.push(frequency_hz);
         self.running.add(e);
-        self.prefix.push(self.running);
     }
 
     fn provisional(&self) -> DecayEstimate {
@@ -141,8 +147,6 @@ impl DecayEstimator for OnlineSchroeder {
     fn reset(&mut self) {
         self.energies.clear();
         self.frequencies_hz.clear();
-        self.prefix.clear();
-        self.prefix.push(CompensatedSum::default());
         self.running = CompensatedSum::default();
     }
 }

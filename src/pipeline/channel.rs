@@ -39,6 +39,13 @@ fn onset_sizes(lookahead_s: f64, sample_rate_hz: f64) -> (usize, usize) {
 /// Samples fed to the front end between end-of-decay checks.
 const CHECK_SAMPLES: usize = 1024;
 
+/// Bytes of one band's state in a channel besides its frame history: the estimator, the
+/// estimate and the result row, and their small heap parts (flags, the channel name).
+pub const BAND_STATE_BYTES: usize = std::mem::size_of::<crate::decay::OnlineSchroeder>()
+    + std::mem::size_of::<DecayEstimate>()
+    + std::mem::size_of::<ResultRow>()
+    + 64;
+
 impl ChannelAnalyzer {
     /// An analyzer for channel `name` at `sample_rate_hz` using `front_end`.
     pub fn new(
@@ -88,9 +95,19 @@ impl ChannelAnalyzer {
     /// Bytes one analyzer holds besides its front end, at most: the onset buffer at its cap,
     /// the new-hit watch, and per band its estimator's state (frame energies grow with the
     /// decay: 16 bytes per frame and band on top of this).
-    pub fn buffer_bytes(sample_rate_hz: f64, n_bands: usize, config: &AnalysisConfig) -> usize {
+    ///
+    /// Per band: its estimator and result row (about [`BAND_STATE_BYTES`]) and the decay's frame
+    /// history, 16 bytes per frame, doubled for vector growth, over `history_frames` frames
+    /// (what a decay can hold: the input's length when known, capped by `max_decay_s`).
+    pub fn buffer_bytes(
+        sample_rate_hz: f64,
+        n_bands: usize,
+        history_frames: f64,
+        config: &AnalysisConfig,
+    ) -> f64 {
         let (lookahead, cap) = onset_sizes(config.onset_lookahead_s, sample_rate_hz);
-        cap * 8 + lookahead * 24 + n_bands * 256
+        (cap * 8 + lookahead * 24) as f64
+            + n_bands as f64 * (BAND_STATE_BYTES as f64 + 32.0 * history_frames)
     }
 
     fn max_decay_samples(&self) -> u64 {

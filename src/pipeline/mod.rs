@@ -165,8 +165,23 @@ pub fn run(
     // Memory, before anything proportional to the channel count is allocated: one front end
     // tells its size, the analyzers' buffers are known, and blocks are shared by the workers.
     let first = factory()?;
+    // A decay's frame history: the input's length when known, capped by the longest decay.
+    let decay_s = source
+        .duration_frames()
+        .map_or(f64::INFINITY, |n| n as f64 / info.sample_rate_hz)
+        .min(config.max_decay_s.unwrap_or(f64::INFINITY));
+    let history_frames = if decay_s.is_finite() {
+        decay_s / first.resolution().frame_period_s
+    } else {
+        0.0 // a stream of unknown length: the envelopes grow with it (docs/FORMATS.md §2)
+    };
     let per_channel = first.memory_bytes() as f64
-        + ChannelAnalyzer::buffer_bytes(info.sample_rate_hz, first.bands().len(), config) as f64;
+        + ChannelAnalyzer::buffer_bytes(
+            info.sample_rate_hz,
+            first.bands().len(),
+            history_frames,
+            config,
+        );
     let blocks = BLOCKS_IN_FLIGHT * block_frames as f64 * n_channels as f64 * 8.0;
     crate::budget::check(
         &format!("the analysis of {n_channels} channels"),

@@ -2,9 +2,9 @@
 
 pub mod assembly;
 pub mod eigen;
-pub mod factored;
 pub mod element;
 pub mod error;
+pub mod factored;
 pub mod frf;
 pub mod impulse;
 pub mod mesh;

@@ -28,9 +28,9 @@ use faer::sparse::linalg::solvers::Llt;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatRef, Par, Side};
 
+use super::factored::FactoredFrf;
 use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
 use super::system::FeSystem;
-use super::factored::FactoredFrf;
 
 /// How the reduced system is solved per frequency.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -288,6 +288,9 @@ fn lu_solve_sequential(a: &mut Mat<c64>, b: MatRef<'_, c64>) -> Vec<c64> {
     x.col(0).iter().copied().collect()
 }
 
+/// Modal responses (frequency × basis vector) and sensor weights (sensor × basis vector).
+type FrfFactors = (Mat<c64>, Mat<c64>);
+
 /// The reduced (projected) model: everything the per-frequency solve needs.
 pub struct ReducedModel {
     /// Basis size m (modes + residual vectors).
@@ -456,7 +459,7 @@ impl ReducedModel {
     }
 
     /// Reduced coordinates by LU per frequency (n_freq × m) and the sensor rows of the basis.
-    fn frf_lu(&self, freqs_hz: &[f64]) -> Result<(Mat<c64>, Mat<c64>), FrfError> {
+    fn frf_lu(&self, freqs_hz: &[f64]) -> Result<FrfFactors, FrfError> {
         let q = self.q_by_lu(freqs_hz)?;
         let svc = Mat::<c64>::from_fn(self.sv.nrows(), self.sv.ncols(), |i, j| {
             c64::new(self.sv[(i, j)], 0.0)
@@ -468,10 +471,7 @@ impl ReducedModel {
     /// q(ω) = L⁻ᵀ X (Λ − ω²)⁻¹ X⁻¹ L⁻¹ b, returned as (Λ − ω²)⁻¹ X⁻¹ L⁻¹ b per frequency and
     /// the sensor rows S V L⁻ᵀ X. Returns `None` when the eigenvectors are too
     /// ill-conditioned to trust (the caller then falls back to LU per frequency).
-    fn frf_diagonalised(
-        &self,
-        freqs_hz: &[f64],
-    ) -> Result<Option<(Mat<c64>, Mat<c64>)>, FrfError> {
+    fn frf_diagonalised(&self, freqs_hz: &[f64]) -> Result<Option<FrfFactors>, FrfError> {
         let m = self.size;
         let llt = match self.m_hat.llt(Side::Lower) {
             Ok(l) => l,

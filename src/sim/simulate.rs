@@ -7,13 +7,13 @@ use std::time::Instant;
 use super::assembly::assemble;
 use super::eigen::{lowest_modes, ModeRequest, Modes};
 use super::error::SimError;
+use super::factored::FactoredFrf;
 use super::frf::{direct_frf, Frf, FrfError};
 use super::impulse::impulse_response;
 use super::model::{Excitation, Model};
 use super::reduced::{BasisOptions, ReducedModel, ReducedSolve};
-use super::system::{FeSystem, SensorWeights};
-use super::factored::FactoredFrf;
 use super::stream::{streamed_bytes, SimulatedSource};
+use super::system::{FeSystem, SensorWeights};
 use super::truncation::{truncated_factored_frf, ModalDamping};
 use crate::source::noise::GaussianNoise;
 

@@ -376,9 +376,7 @@ pub fn write_recording_set(
     }
     write_set(
         dir,
-        meta,
-        sensors,
-        excitation,
+        (meta, sensors, excitation),
         sample_rate_hz,
         channels.len(),
         "responses.wav",
@@ -401,7 +399,9 @@ pub fn write_recording_set_streamed(
     let Some(frames) = source.duration_frames() else {
         return Err(SourceError::Setting {
             what: dir.display().to_string(),
-            detail: "a recording set is written from a source of known length; this one is a stream".into(),
+            detail:
+                "a recording set is written from a source of known length; this one is a stream"
+                    .into(),
         });
     };
     let n_channels = source.info().channels();
@@ -409,12 +409,14 @@ pub fn write_recording_set_streamed(
     let mut failure = None;
     let written = write_set(
         dir,
-        meta,
-        sensors,
-        excitation,
+        (meta, sensors, excitation),
         rate,
         n_channels,
-        if as_wav { "responses.wav" } else { "responses.csv" },
+        if as_wav {
+            "responses.wav"
+        } else {
+            "responses.csv"
+        },
         &mut |w| {
             let mut sink = if as_wav {
                 ResponseSink::Wav(WavStreamWriter::new(w, rate as u32, n_channels, frames)?)
@@ -443,10 +445,7 @@ pub fn write_recording_set_streamed(
 /// time column and the samples as f32 (the WAV's precision).
 enum ResponseSink<'a> {
     Wav(WavStreamWriter<&'a mut dyn Write>),
-    Csv {
-        out: &'a mut dyn Write,
-        frames: u64,
-    },
+    Csv { out: &'a mut dyn Write, frames: u64 },
 }
 
 impl<'a> ResponseSink<'a> {
@@ -487,9 +486,7 @@ impl<'a> ResponseSink<'a> {
 /// The common part of the two writers: checks, then the WAV (by `write_wav`) and the metadata.
 fn write_set(
     dir: &Path,
-    meta: &RecordingMeta,
-    sensors: &[Sensor],
-    excitation: &[Excitation],
+    (meta, sensors, excitation): (&RecordingMeta, &[Sensor], &[Excitation]),
     sample_rate_hz: f64,
     n_channels: usize,
     responses_name: &str,
