@@ -47,6 +47,9 @@ pub fn make_front_end(
         FrontEndChoice::Goyder => Box::new(GoyderFrontEnd::new(
             GoyderSettings {
                 direction: direction.into(),
+                order: band_args
+                    .filter_order
+                    .unwrap_or(GoyderSettings::default().order),
                 ..Default::default()
             },
             sample_rate_hz,
@@ -55,6 +58,9 @@ pub fn make_front_end(
         FrontEndChoice::Octave => Box::new(OctaveBankFrontEnd::new(
             OctaveBankSettings {
                 direction: direction.into(),
+                order: band_args
+                    .filter_order
+                    .unwrap_or(OctaveBankSettings::default().order),
                 ..Default::default()
             },
             sample_rate_hz,

@@ -41,6 +41,10 @@ pub struct BandArgs {
     /// STFT zero-padding factor (FFT length = window × factor).
     #[arg(long, default_value_t = 1)]
     pub zero_pad: usize,
+    /// Order of the filter banks' low-pass prototype (octave: 1…16, default
+    /// `OctaveBankSettings::default().order`; Goyder: even, 2…8, default 4). pyfar/pyrato use 14.
+    #[arg(long, value_name = "N")]
+    pub filter_order: Option<usize>,
     /// Evaluation range: edt, t20, t30, drop:N (−5…−(5+N) dB) or from:A:B (−A…−B dB).
     #[arg(long, default_value = "t30")]
     pub range: String,
@@ -63,6 +67,7 @@ impl Default for BandArgs {
             window_ms: 200.0,
             overlap: 0.5,
             zero_pad: 1,
+            filter_order: None,
             range: "t30".into(),
             min_points: 3,
             noise_margin_db: 10.0,

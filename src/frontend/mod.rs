@@ -72,6 +72,17 @@ pub trait FrontEnd: Send {
     /// Forgets the current decay so that the next call to `process` starts a new one.
     fn reset(&mut self);
 
+    /// Samples before a decay's onset that this front end wants with it (0 by default). A bank
+    /// that filters the reversed decay smears each band's share of the first arrival to before
+    /// the broadband onset; with this much of what preceded the onset it keeps that energy.
+    fn pre_roll_samples(&self) -> usize {
+        0
+    }
+
+    /// Starts a decay (after [`FrontEnd::reset`]) with the samples that preceded its onset, at
+    /// most [`FrontEnd::pre_roll_samples`] of them, oldest first. Ignored by default.
+    fn begin_decay(&mut self, _pre_roll: &[f64]) {}
+
     /// True when the current decay outlasted what the front end buffers, so that only its
     /// first part was analysed (the rows then carry `decay_too_long`). Streaming front ends
     /// never are.
@@ -210,4 +221,56 @@ pub(crate) fn buffer_bounded(buffer: &mut Vec<f64>, max_samples: usize, samples:
     let room = max_samples.saturating_sub(buffer.len());
     buffer.extend_from_slice(&samples[..samples.len().min(room)]);
     samples.len() > room
+}
+
+/// A band's decay starts where its energy first comes within this many dB of its peak
+/// (ISO 3382-1's start of the impulse response, applied per band by the buffering banks).
+pub const BAND_ONSET_LEVEL_DB: f64 = 20.0;
+
+/// Per band, the first frame whose energy comes within [`BAND_ONSET_LEVEL_DB`] of the band's
+/// peak among its first `band_frames[b]` frames. `energy` holds `n_frames × nb` values, frame
+/// by frame. A band without energy starts at frame 0.
+pub(crate) fn band_onset_frames(energy: &[f64], nb: usize, band_frames: &[usize]) -> Vec<usize> {
+    let level = 10f64.powf(-BAND_ONSET_LEVEL_DB / 10.0);
+    (0..nb)
+        .map(|b| {
+            let n = band_frames[b].min(energy.len() / nb.max(1));
+            let e = |k: usize| energy[k * nb + b];
+            let peak = (0..n).map(e).fold(0.0f64, f64::max);
+            if peak > 0.0 {
+                (0..n).position(|k| e(k) >= peak * level).unwrap_or(0)
+            } else {
+                0
+            }
+        })
+        .collect()
+}
+
+/// Emits the frames of a buffering bank: band b holds frames `onsets[b] .. band_frames[b]`
+/// (its own start and its own transient cut) and is marked inactive elsewhere; frames before
+/// every band's start are not emitted.
+pub(crate) fn emit_band_frames(
+    sink: &mut dyn FrameSink,
+    energy: &[f64],
+    frequency_hz: &[f64],
+    onsets: &[usize],
+    band_frames: &[usize],
+) {
+    let nb = onsets.len();
+    if nb == 0 {
+        return;
+    }
+    let n_frames = energy.len() / nb;
+    let first = onsets.iter().copied().min().unwrap_or(0);
+    let mut active = vec![true; nb];
+    for k in first..n_frames {
+        for ((a, &on), &end) in active.iter_mut().zip(onsets).zip(band_frames) {
+            *a = k >= on && k < end;
+        }
+        sink.frame(Frame {
+            energy: &energy[k * nb..(k + 1) * nb],
+            frequency_hz: &frequency_hz[k * nb..(k + 1) * nb],
+            active: (!active.iter().all(|a| *a)).then_some(active.as_slice()),
+        });
+    }
 }

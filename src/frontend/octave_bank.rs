@@ -52,11 +52,11 @@ pub fn butterworth_bandpass(
     hi_hz: f64,
     fs_hz: f64,
 ) -> Result<Vec<Coefficients<f64>>> {
-    if !(lo_hz > 0.0 && hi_hz > lo_hz && hi_hz < 0.5 * fs_hz && (1..=10).contains(&order)) {
+    if !(lo_hz > 0.0 && hi_hz > lo_hz && hi_hz < 0.5 * fs_hz && (1..=16).contains(&order)) {
         return Err(Error::setting(
             "octave band",
             format!(
-                "expected 0 < lo < hi < fs/2 = {} Hz and order 1…10, got {lo_hz}…{hi_hz} Hz, order {order}",
+                "expected 0 < lo < hi < fs/2 = {} Hz and order 1…16, got {lo_hz}…{hi_hz} Hz, order {order}",
                 0.5 * fs_hz
             ),
         ));
@@ -133,7 +133,10 @@ pub struct OctaveBankFrontEnd {
     smooth: Vec<[f64; 2]>,
     smooth_factor: Vec<f64>,
     hop: usize,
-    cut_samples: usize,
+    /// Per band, the samples dropped at the end of a reversed decay (cut_factor / B).
+    band_cut_samples: Vec<usize>,
+    /// Samples before the onset a reversed decay starts with (the widest reach, cut_factor / B_min).
+    pre_roll: usize,
     max_samples: usize,
     buffer: Vec<f64>,
     overflowed: bool,
@@ -180,16 +183,18 @@ impl OctaveBankFrontEnd {
         let hop = (settings.frame_period_ms * 1e-3 * sample_rate_hz)
             .round()
             .max(1.0) as usize;
-        let b_min = bands
+        let reversed = settings.direction == FilterDirection::Reversed;
+        let band_cut_samples: Vec<usize> = bands
             .iter()
-            .map(|b| b.width_hz())
-            .fold(f64::INFINITY, f64::min);
-        let cut_samples = match settings.direction {
-            FilterDirection::Reversed if b_min.is_finite() => {
-                (settings.cut_factor / b_min * sample_rate_hz).ceil() as usize
-            }
-            _ => 0,
-        };
+            .map(|b| {
+                if reversed {
+                    (settings.cut_factor / b.width_hz() * sample_rate_hz).ceil() as usize
+                } else {
+                    0
+                }
+            })
+            .collect();
+        let pre_roll = band_cut_samples.iter().copied().max().unwrap_or(0);
         let nb = bands.len();
         Ok(OctaveBankFrontEnd {
             bands: bands.to_vec(),
@@ -205,7 +210,8 @@ impl OctaveBankFrontEnd {
                 .map(|b| (-(hop as f64) * b.lo_hz / (2.0 * sample_rate_hz)).exp())
                 .collect(),
             hop,
-            cut_samples,
+            band_cut_samples,
+            pre_roll,
             max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
             buffer: Vec::new(),
             overflowed: false,
@@ -289,7 +295,8 @@ impl OctaveBankFrontEnd {
 impl FrontEnd for OctaveBankFrontEnd {
     fn memory_bytes(&self) -> usize {
         let buffer = match self.settings.direction {
-            FilterDirection::Reversed => self.max_samples.saturating_mul(8),
+            // The decay buffer with its pre-roll, and the onset detector's pre-roll history.
+            FilterDirection::Reversed => (self.max_samples + 2 * self.pre_roll).saturating_mul(8),
             FilterDirection::Forward => 0,
         };
         buffer + self.bands.len() * 512
@@ -317,8 +324,11 @@ impl FrontEnd for OctaveBankFrontEnd {
                 }
             }
             FilterDirection::Reversed => {
-                self.overflowed |=
-                    super::buffer_bounded(&mut self.buffer, self.max_samples, samples);
+                self.overflowed |= super::buffer_bounded(
+                    &mut self.buffer,
+                    self.max_samples + self.pre_roll,
+                    samples,
+                );
             }
         }
     }
@@ -330,8 +340,13 @@ impl FrontEnd for OctaveBankFrontEnd {
             return;
         }
         let buffer = std::mem::take(&mut self.buffer);
-        let keep = buffer.len().saturating_sub(self.cut_samples);
-        let n_frames = keep / self.hop;
+        // Each band keeps the frames before its own transient zone; the widest band the most.
+        let band_frames: Vec<usize> = self
+            .band_cut_samples
+            .iter()
+            .map(|c| buffer.len().saturating_sub(*c) / self.hop)
+            .collect();
+        let n_frames = band_frames.iter().copied().max().unwrap_or(0);
         let used = n_frames * self.hop;
         let nb = self.bands.len();
         let mut frames = vec![0.0; n_frames * nb];
@@ -354,11 +369,8 @@ impl FrontEnd for OctaveBankFrontEnd {
                 freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
             }
         }
-        for k in 0..n_frames {
-            self.energy.copy_from_slice(&frames[k * nb..(k + 1) * nb]);
-            self.freq.copy_from_slice(&freqs[k * nb..(k + 1) * nb]);
-            self.emit(sink);
-        }
+        let onsets = super::band_onset_frames(&frames, nb, &band_frames);
+        super::emit_band_frames(sink, &frames, &freqs, &onsets, &band_frames);
         self.clear_filters();
         self.buffer = buffer;
         self.buffer.clear();
@@ -372,6 +384,21 @@ impl FrontEnd for OctaveBankFrontEnd {
 
     fn decay_cut_short(&self) -> bool {
         self.overflowed
+    }
+
+    fn pre_roll_samples(&self) -> usize {
+        self.pre_roll
+    }
+
+    fn begin_decay(&mut self, pre_roll: &[f64]) {
+        if self.settings.direction == FilterDirection::Reversed {
+            // Zeros where the input has less (a record that starts at its onset): the backward
+            // filters' output before the onset is what is kept, not the input there.
+            let from = pre_roll.len().saturating_sub(self.pre_roll);
+            let zeros = self.pre_roll - (pre_roll.len() - from);
+            self.buffer.resize(zeros, 0.0);
+            self.buffer.extend_from_slice(&pre_roll[from..]);
+        }
     }
 
     fn name(&self) -> &'static str {

@@ -28,6 +28,9 @@ pub struct OnsetSettings {
     pub lookahead_samples: usize,
     /// Hard cap on the samples buffered while looking for the peak.
     pub max_buffer_samples: usize,
+    /// Samples before the onset handed over with it ([`OnsetEvent::Found::pre_roll`]); 0 for
+    /// none. The detector keeps this many of the most recent samples before it armed.
+    pub pre_roll_samples: usize,
 }
 
 /// What the detector found in a call to [`OnsetDetector::push`].
@@ -46,6 +49,9 @@ pub enum OnsetEvent {
         consumed: usize,
         /// Peak magnitude seen while looking for the onset.
         peak: f64,
+        /// Up to [`OnsetSettings::pre_roll_samples`] samples that preceded the onset, oldest
+        /// first (fewer at the start of the stream).
+        pre_roll: Vec<f64>,
     },
 }
 
@@ -60,6 +66,8 @@ pub struct OnsetDetector {
     buffer: Vec<f64>,
     peak: f64,
     peak_offset: usize,
+    /// The most recent samples that are not in `buffer` (at most `pre_roll_samples`).
+    history: std::collections::VecDeque<f64>,
 }
 
 impl OnsetDetector {
@@ -73,7 +81,20 @@ impl OnsetDetector {
             buffer: Vec::new(),
             peak: 0.0,
             peak_offset: 0,
+            history: std::collections::VecDeque::new(),
         }
+    }
+
+    /// Keeps `samples` as the most recent history (for the next onset's pre-roll).
+    fn remember(&mut self, samples: &[f64]) {
+        let cap = self.settings.pre_roll_samples;
+        if cap == 0 {
+            return;
+        }
+        let from = samples.len().saturating_sub(cap);
+        self.history.extend(&samples[from..]);
+        let excess = self.history.len().saturating_sub(cap);
+        self.history.drain(..excess);
     }
 
     /// Restarts the search at the current position with a new arming threshold
@@ -86,9 +107,11 @@ impl OnsetDetector {
         self.peak_offset = 0;
     }
 
-    /// Moves the stream position forward by `n` samples that bypassed the detector.
-    pub fn advance(&mut self, n: usize) {
-        self.position += n as u64;
+    /// Moves the stream position forward over `samples` that bypassed the detector (a running
+    /// decay); they stay in the history from which the next onset's pre-roll is taken.
+    pub fn advance(&mut self, samples: &[f64]) {
+        self.position += samples.len() as u64;
+        self.remember(samples);
     }
 
     /// Absolute index of the next sample.
@@ -111,6 +134,10 @@ impl OnsetDetector {
             .unwrap_or(0);
         let onset_index = self.armed_at.unwrap_or(self.position) + first as u64;
         let samples = self.buffer.split_off(first);
+        let before = std::mem::take(&mut self.buffer);
+        self.remember(&before);
+        let pre_roll = self.history.drain(..).collect();
+        self.remember(&samples);
         let peak = self.peak;
         self.rearm(self.arm_threshold);
         OnsetEvent::Found {
@@ -118,6 +145,7 @@ impl OnsetDetector {
             samples,
             consumed,
             peak,
+            pre_roll,
         }
     }
 
@@ -130,6 +158,7 @@ impl OnsetDetector {
                 if a > self.arm_threshold {
                     self.armed_at = Some(self.position - 1);
                 } else {
+                    self.remember(&[x]);
                     continue;
                 }
             }
@@ -286,6 +315,7 @@ mod tests {
             level_db: 20.0,
             lookahead_samples: 50,
             max_buffer_samples: 10_000,
+            pre_roll_samples: 0,
         }
     }
 

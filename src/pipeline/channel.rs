@@ -65,6 +65,7 @@ impl ChannelAnalyzer {
             level_db: config.onset_level_db,
             lookahead_samples: lookahead,
             max_buffer_samples: cap,
+            pre_roll_samples: front_end.pre_roll_samples(),
         };
         let lowest_hz = front_end
             .bands()
@@ -189,8 +190,9 @@ impl ChannelAnalyzer {
             .rearm(self.last_peak * 10f64.powf(-self.config.retrigger_db / 20.0));
     }
 
-    fn start_decay(&mut self, onset_index: u64, first: &[f64], peak: f64) {
+    fn start_decay(&mut self, onset_index: u64, pre_roll: &[f64], first: &[f64], peak: f64) {
         self.front_end.reset();
+        self.front_end.begin_decay(pre_roll);
         self.trackers.reset();
         self.last_peak = peak;
         self.retriggered = false;
@@ -262,14 +264,15 @@ impl ChannelAnalyzer {
                         samples,
                         consumed,
                         peak,
+                        pre_roll,
                     } => {
                         rest = &rest[consumed..];
-                        self.start_decay(onset_index, &samples, peak);
+                        self.start_decay(onset_index, &pre_roll, &samples, peak);
                     }
                 },
                 State::Decaying { .. } => {
                     let used = self.feed_decay(rest);
-                    self.detector.advance(used);
+                    self.detector.advance(&rest[..used]);
                     rest = &rest[used..];
                 }
             }
@@ -293,10 +296,11 @@ impl ChannelAnalyzer {
                 onset_index,
                 samples,
                 peak,
+                pre_roll,
                 ..
             } = self.detector.finish()
             {
-                self.start_decay(onset_index, &samples, peak);
+                self.start_decay(onset_index, &pre_roll, &samples, peak);
             }
         }
         self.finalize(truncated, out);
