@@ -170,3 +170,39 @@ fn empty_raw_standard_input_exits_1() {
     let rows = String::from_utf8_lossy(&o.stdout).lines().count();
     assert!(rows <= 1, "no result rows, got {rows} lines");
 }
+
+/// Found on pyrato's reference RIRs (issue 15): a CSV laid out one channel per row, 2 × 16384,
+/// was read as 16 384 channels of two samples without a word. A headerless CSV with fewer rows
+/// than columns is now refused naming both counts; the same data one channel per column, and a
+/// headed CSV with more channels than samples (a large sensor grid), are read.
+#[test]
+fn a_transposed_headerless_csv_is_refused() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/data/pyrato/analytic_rir_psnr50_2D.csv"
+    );
+    let o = dampscope(&["analyze", path, "--fs", "3000"], b"");
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("2 rows of 16384 columns") && stderr(&o).contains("transposed"),
+        "{}",
+        stderr(&o)
+    );
+    let text = std::fs::read_to_string(path).unwrap();
+    let rows: Vec<Vec<&str>> = text.lines().map(|l| l.split(',').collect()).collect();
+    let columns: String = (0..rows[0].len())
+        .map(|k| format!("{},{}\n", rows[0][k], rows[1][k]))
+        .collect();
+    let o = dampscope(&["analyze", "-", "--fs", "3000", "--band", "100:200"], columns.as_bytes());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 3);
+    let wide = format!(
+        "time,{}\n0,{}\n0.001,{}\n",
+        (0..50).map(|k| format!("s{k}")).collect::<Vec<_>>().join(","),
+        vec!["1"; 50].join(","),
+        vec!["0.5"; 50].join(",")
+    );
+    let o = dampscope(&["analyze", "-", "--band", "100:200"], wide.as_bytes());
+    assert!(!stderr(&o).contains("transposed"), "{}", stderr(&o));
+    assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 51);
+}

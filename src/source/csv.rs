@@ -137,6 +137,7 @@ impl<R: BufRead + Send> CsvSource<R> {
             s.info.channel_names = (0..s.n_cols).map(|k| format!("ch{k}")).collect();
             let row = s.parse_row(&first, true)?;
             s.queued.push_back(row);
+            s.check_orientation()?;
         } else {
             let names: Vec<String> = fields
                 .iter()
@@ -192,6 +193,42 @@ impl<R: BufRead + Send> CsvSource<R> {
         }
         s.info.sample_rate_hz = check_fs(&s.what, fs)?;
         Ok(s)
+    }
+
+    /// A CSV without a header holding fewer rows than columns is a table laid out one channel
+    /// per *row* (pyrato's and numpy's layout, e.g. 2 × 16384): read as it stands it would be
+    /// thousands of channels of a few samples each, so it is refused. Reads ahead (queued) until
+    /// the rows reach the columns, the input ends, or [`TIME_FIT_CELLS`] cells are held (then the
+    /// orientation is taken as given). A header names its channels, so it settles the question.
+    fn check_orientation(&mut self) -> Result<(), SourceError> {
+        if self.n_cols < 2 {
+            return Ok(());
+        }
+        while self.queued.len() < self.n_cols && self.queued.len() * self.n_cols < TIME_FIT_CELLS {
+            match self.next_line() {
+                Ok(Line::Data(l, nl)) => match self.parse_row(&l, nl) {
+                    Ok(row) => self.queued.push_back(row),
+                    Err(e) => {
+                        self.pending_after_queue = Some(e);
+                        return Ok(());
+                    }
+                },
+                Ok(Line::End) => {
+                    return Err(self.malformed(format!(
+                        "{} rows of {} columns without a header: dampscope reads one sample per row and one channel per column, so this looks transposed ({} channels of {} samples?); transpose it or add a header naming the channels (docs/FORMATS.md §1)",
+                        self.queued.len(),
+                        self.n_cols,
+                        self.queued.len(),
+                        self.n_cols
+                    )));
+                }
+                Err(e) => {
+                    self.pending_after_queue = Some(e);
+                    return Ok(());
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Reads up to [`TIME_FIT_ROWS`] rows ahead (keeping them queued) and returns the rate from
