@@ -193,12 +193,18 @@ fn a_transposed_headerless_csv_is_refused() {
     let columns: String = (0..rows[0].len())
         .map(|k| format!("{},{}\n", rows[0][k], rows[1][k]))
         .collect();
-    let o = dampscope(&["analyze", "-", "--fs", "3000", "--band", "100:200"], columns.as_bytes());
+    let o = dampscope(
+        &["analyze", "-", "--fs", "3000", "--band", "100:200"],
+        columns.as_bytes(),
+    );
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert_eq!(String::from_utf8_lossy(&o.stdout).lines().count(), 3);
     let wide = format!(
         "time,{}\n0,{}\n0.001,{}\n",
-        (0..50).map(|k| format!("s{k}")).collect::<Vec<_>>().join(","),
+        (0..50)
+            .map(|k| format!("s{k}"))
+            .collect::<Vec<_>>()
+            .join(","),
         vec!["1"; 50].join(","),
         vec!["0.5"; 50].join(",")
     );

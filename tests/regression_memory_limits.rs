@@ -69,16 +69,30 @@ fn a_billion_raw_channels_are_refused() {
     refused(&o, &["memory", "1000000000 raw channels"]);
 }
 
-#[test]
-fn a_window_longer_than_the_input_is_refused() {
-    let dir = fresh_dir("mem-window");
+/// A 2 s WAV of one 55 Hz mode (D 2.5 %) in `dir`, written by `dampscope synth`.
+fn one_mode_2_s(dir: &std::path::Path) -> std::path::PathBuf {
     let wav = dir.join("s.wav");
-    let w = wav.to_str().unwrap();
     let o = dampscope(
-        &["synth", "--mode", "55:0.025", "--seconds", "2", "--out", w],
+        &[
+            "synth",
+            "--mode",
+            "55:0.025",
+            "--seconds",
+            "2",
+            "--out",
+            wav.to_str().unwrap(),
+        ],
         b"",
     );
     assert!(o.status.success());
+    wav
+}
+
+#[test]
+fn a_window_longer_than_the_input_is_refused() {
+    let dir = fresh_dir("mem-window");
+    let wav = one_mode_2_s(&dir);
+    let w = wav.to_str().unwrap();
     let o = dampscope(&["analyze", w, "--window-ms", "2.5e7"], b"");
     refused(&o, &["--window-ms", "input's length"]);
     // On a stream of unknown length (raw samples), the memory budget refuses it.
@@ -216,13 +230,8 @@ fn a_200_by_300_sensor_grid_is_streamed_to_disk_within_the_budget() {
 #[test]
 fn a_hundred_thousand_narrow_bands_fit_in_200_mb_and_give_no_number() {
     let dir = fresh_dir("mem-bands");
-    let wav = dir.join("s.wav");
+    let wav = one_mode_2_s(&dir);
     let w = wav.to_str().unwrap();
-    let o = dampscope(
-        &["synth", "--mode", "55:0.025", "--seconds", "2", "--out", w],
-        b"",
-    );
-    assert!(o.status.success());
     let args = ["analyze", w, "--bands", "0:2000:0.02"];
     let o = dampscope(&[&["--max-memory", "100M"][..], &args].concat(), b"");
     refused(&o, &["memory", "analysis of 1 channels"]);

@@ -56,14 +56,15 @@ fn analyze(path: &std::path::Path, extra: &[&str]) -> Vec<HashMap<String, String
     );
     let text = String::from_utf8(o.stdout).unwrap();
     let mut lines = text.lines();
-    let header: Vec<String> = lines
-        .next()
-        .unwrap()
-        .split(',')
-        .map(String::from)
-        .collect();
+    let header: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
     lines
-        .map(|l| header.iter().cloned().zip(l.split(',').map(String::from)).collect())
+        .map(|l| {
+            header
+                .iter()
+                .cloned()
+                .zip(l.split(',').map(String::from))
+                .collect()
+        })
         .collect()
 }
 
@@ -125,7 +126,10 @@ fn two_hits_0_3_s_apart_are_two_decays_equal_to_each_hit_alone() {
                     ),
                 }
             }
-            assert!(numbers >= 1, "{front_end:?} decay {decay}: no number at all");
+            assert!(
+                numbers >= 1,
+                "{front_end:?} decay {decay}: no number at all"
+            );
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
