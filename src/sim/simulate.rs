@@ -437,21 +437,13 @@ pub fn impulse_responses(
     snr_db: Option<f64>,
     seed: u64,
 ) -> Result<Vec<Vec<f64>>, SimError> {
-    if let Some(s) = snr_db {
-        if !s.is_finite() {
-            return Err(SimError::InvalidValue {
-                key: "snr-db".into(),
-                message: format!("expected a finite dB value, got {s}"),
-            });
-        }
-    }
+    check_snr_db(snr_db)?;
     let ns = frf.n_sensors();
     let one = |k: usize| -> Result<Vec<f64>, SimError> {
         let mut h = impulse_response(&frf.accelerance(k), fmax_hz)?;
         if let Some(snr) = snr_db {
             let peak = h.iter().fold(0.0f64, |a, x| a.max(x.abs()));
-            let sigma = peak * 10f64.powf(-snr / 20.0);
-            let mut g = GaussianNoise::new(seed.wrapping_add(k as u64));
+            let (sigma, mut g) = channel_noise(peak, snr, seed, k);
             h.iter_mut().for_each(|x| *x += sigma * g.next_gaussian());
         }
         Ok(h)
@@ -465,4 +457,24 @@ pub fn impulse_responses(
     let mut out = a.map_err(|_| SimError::Eigen("impulse-response worker panicked".into()))??;
     out.extend(b?);
     Ok(out)
+}
+
+/// Refuses a peak SNR that is not a finite number of dB.
+pub(crate) fn check_snr_db(snr_db: Option<f64>) -> Result<(), SimError> {
+    match snr_db {
+        Some(s) if !s.is_finite() => Err(SimError::InvalidValue {
+            key: "snr-db".into(),
+            message: format!("expected a finite dB value, got {s}"),
+        }),
+        _ => Ok(()),
+    }
+}
+
+/// The noise of channel `k` at a peak SNR: σ = peak · 10^(−snr/20) and its generator, seeded
+/// with `seed + k` (the held and the streamed simulations draw the same noise).
+pub(crate) fn channel_noise(peak: f64, snr_db: f64, seed: u64, k: usize) -> (f64, GaussianNoise) {
+    (
+        peak * 10f64.powf(-snr_db / 20.0),
+        GaussianNoise::new(seed.wrapping_add(k as u64)),
+    )
 }

@@ -18,6 +18,7 @@ use faer::{c64, Mat};
 use super::error::SimError;
 use super::factored::FactoredFrf;
 use super::impulse::impulse_response;
+use super::simulate::{channel_noise, check_snr_db};
 use crate::source::memory::MemorySource;
 use crate::source::noise::GaussianNoise;
 use crate::source::{Block, SignalInfo, Source, SourceError};
@@ -83,14 +84,7 @@ impl SimulatedSource {
         snr_db: Option<f64>,
         seed: u64,
     ) -> Result<Self, SimError> {
-        if let Some(s) = snr_db {
-            if !s.is_finite() {
-                return Err(SimError::InvalidValue {
-                    key: "snr-db".into(),
-                    message: format!("expected a finite dB value, got {s}"),
-                });
-            }
-        }
+        check_snr_db(snr_db)?;
         let omega2: Vec<f64> = frf
             .frequencies_hz
             .iter()
@@ -139,10 +133,7 @@ impl SimulatedSource {
             stream.noise = peaks
                 .iter()
                 .enumerate()
-                .map(|(k, p)| {
-                    let sigma = p * 10f64.powf(-snr / 20.0);
-                    (sigma, GaussianNoise::new(seed.wrapping_add(k as u64)))
-                })
+                .map(|(k, &p)| channel_noise(p, snr, seed, k))
                 .collect();
         }
         Ok(SimulatedSource {
