@@ -26,6 +26,7 @@ pub mod frontend;
 pub mod output;
 pub mod pipeline;
 pub mod plot;
+pub mod presets;
 pub mod sim;
 pub mod source;
 

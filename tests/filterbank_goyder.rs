@@ -126,7 +126,7 @@ fn report_three_modes_with_auto_bands_each_within_3_percent() {
         f_max_hz: 400.0,
         ..Default::default()
     };
-    let bands = auto_bands(&x, fs, &settings).unwrap();
+    let bands = auto_bands(&[&x], fs, &settings).unwrap();
     assert_eq!(bands.len(), 3, "{bands:?}");
     let est = goyder(
         &x,

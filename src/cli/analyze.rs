@@ -50,6 +50,9 @@ pub fn make_front_end(
                 order: band_args
                     .filter_order
                     .unwrap_or(GoyderSettings::default().order),
+                frame_period_ms: band_args
+                    .frame_ms
+                    .unwrap_or(GoyderSettings::default().frame_period_ms),
                 ..Default::default()
             },
             sample_rate_hz,
@@ -61,12 +64,23 @@ pub fn make_front_end(
                 order: band_args
                     .filter_order
                     .unwrap_or(OctaveBankSettings::default().order),
+                frame_period_ms: band_args
+                    .frame_ms
+                    .unwrap_or(OctaveBankSettings::default().frame_period_ms),
                 ..Default::default()
             },
             sample_rate_hz,
             bands,
         )?),
     })
+}
+
+/// Named settings of another tool ([`crate::presets`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum PresetArg {
+    /// pyrato's Chu + Lundeby reverberation times: octave bank forward at order 14, 0.1 ms
+    /// frames, EDT over −0.1…−10.1 dB, numbers down to the noise and whatever the curvature.
+    Pyrato,
 }
 
 /// The analysis options shared by `analyze` and `map`: front end, bands, evaluation range and
@@ -98,6 +112,37 @@ pub struct PipelineArgs {
     /// within --retrigger-db of the peak) is a new hit and starts a new decay; `inf` never splits.
     #[arg(long, default_value_t = pipeline::DEFAULT_RETRIGGER_JUMP_DB, value_name = "DB")]
     pub retrigger_jump_db: f64,
+    /// Reproduce another tool: `pyrato` sets --front-end octave --filter-direction forward
+    /// --filter-order 14 --frame-ms 0.1 --noise-margin-db 0 --min-r2 0 --max-curvature-pct inf
+    /// and pyrato's EDT limits (these options are then ignored).
+    #[arg(long, value_enum)]
+    pub preset: Option<PresetArg>,
+}
+
+impl PipelineArgs {
+    /// The options with the preset's settings in place of the ones it overrides.
+    pub fn with_preset(&self) -> PipelineArgs {
+        let mut args = self.clone();
+        if let Some(PresetArg::Pyrato) = self.preset {
+            use crate::presets::pyrato;
+            args.front_end = FrontEndChoice::Octave;
+            args.filter_direction = pyrato::DIRECTION.into();
+            args.bands.filter_order = Some(pyrato::FILTER_ORDER);
+            args.bands.frame_ms = Some(pyrato::FRAME_PERIOD_MS);
+        }
+        args
+    }
+
+    /// The estimate settings of these options (the preset's when one is given).
+    pub fn estimate(&self) -> crate::error::Result<crate::decay::estimate::EstimateSettings> {
+        let given = self.bands.estimate()?;
+        Ok(match self.preset {
+            Some(PresetArg::Pyrato) => {
+                crate::presets::pyrato::estimate(given.range, given.min_points)
+            }
+            None => given,
+        })
+    }
 }
 
 /// Options of `dampscope analyze`.
@@ -152,14 +197,17 @@ pub struct PreparedRun {
 /// Resolves bands (reading the input whole for `--bands auto`), front end and settings;
 /// prints band warnings to stderr.
 pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Result<PreparedRun> {
+    let args = &args.with_preset();
     let info = source.info().clone();
     let fs = info.sample_rate_hz;
     let (source, bands, warnings): (Box<dyn Source>, _, _) = if args.bands.needs_samples() {
         // Mode-centred bands need the spectrum first: read the input whole (bounded).
         let data = read_all(source.as_mut(), MAX_WHOLE_SAMPLES)?;
-        let first = data.first().map(Vec::as_slice).unwrap_or(&[]);
-        let from = find_onset(first, args.onset_level_db).unwrap_or(0);
-        let (bands, warnings) = args.bands.resolve_with(fs, Some(&first[from..]))?;
+        let decays: Vec<&[f64]> = data
+            .iter()
+            .map(|c| &c[find_onset(c, args.onset_level_db).unwrap_or(0)..])
+            .collect();
+        let (bands, warnings) = args.bands.resolve_with(fs, Some(&decays))?;
         (
             Box::new(MemorySource::new(info.clone(), data)?),
             bands,
@@ -201,7 +249,7 @@ pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Resu
         args.retrigger_jump_db
     );
     let config = AnalysisConfig {
-        estimate: args.bands.estimate()?,
+        estimate: args.estimate()?,
         onset_level_db: args.onset_level_db,
         max_decay_s: args.max_decay_s,
         end_drop_db: args.end_drop_db,

@@ -75,13 +75,22 @@ impl From<DirectionArg> for FilterDirection {
     }
 }
 
+impl From<FilterDirection> for DirectionArg {
+    fn from(d: FilterDirection) -> Self {
+        match d {
+            FilterDirection::Forward => DirectionArg::Forward,
+            FilterDirection::Reversed => DirectionArg::Reversed,
+        }
+    }
+}
+
 /// Resolves the band options for one decay (see [`BandArgs::resolve_with`]).
 pub fn resolve_bands(
     args: &BandArgs,
     decay: &[f64],
     fs_hz: f64,
 ) -> Result<(Vec<Band>, Vec<String>)> {
-    args.resolve_with(fs_hz, Some(decay))
+    args.resolve_with(fs_hz, Some(&[decay]))
 }
 
 /// Builds the named front end.

@@ -28,6 +28,20 @@ pub struct AutoBandSettings {
     pub zero_pad: usize,
     /// Most peaks kept (the largest; default 64).
     pub max_peaks: usize,
+    /// Narrowest band, Hz (0 by default): a buffering bank drops `cut_factor / B` seconds at
+    /// the end of each band, so bands on a short record must be wide (see
+    /// [`min_width_for_record_hz`]). Overrides `max_width_hz` where larger.
+    pub min_width_hz: f64,
+}
+
+/// Narrowest band whose transient cut (`cut_factor / B` s) takes at most a quarter of a record
+/// of `record_s` seconds: a 0.1 s shock record needs 120 Hz bands with the banks' cut factor 3.
+pub fn min_width_for_record_hz(record_s: f64, cut_factor: f64) -> f64 {
+    if record_s > 0.0 {
+        4.0 * cut_factor / record_s
+    } else {
+        0.0
+    }
 }
 
 impl Default for AutoBandSettings {
@@ -40,6 +54,7 @@ impl Default for AutoBandSettings {
             min_spacing_hz: 1.0,
             zero_pad: 4,
             max_peaks: 64,
+            min_width_hz: 0.0,
         }
     }
 }
@@ -82,23 +97,43 @@ pub fn bands_around_modes(freqs_hz: &[f64], max_width_hz: f64) -> Result<Vec<Ban
         .collect())
 }
 
-/// Peak frequencies (Hz, ascending) of the magnitude spectrum of `samples`: local maxima of the
-/// zero-padded FFT within the range and threshold, refined by parabolic interpolation of the
-/// dB magnitude over the three bins around each maximum.
+/// A peak must stand this many dB above the higher of its two bases (the lowest points between
+/// it and the nearest higher peak on each side, or the range's ends) of the smoothed spectrum to
+/// count as a mode: the ripples of one broad peak, or of a short record's truncation, do not.
+pub const PEAK_PROMINENCE_DB: f64 = 10.0;
+
+/// The power spectrum is smoothed over this many times 1/T (T the longest record): the
+/// sidelobes of a record cut at T repeat every 1/T Hz.
+pub const SMOOTHING_RECORDS: f64 = 2.0;
+
+/// Peak frequencies (Hz, ascending) of one decay; see [`spectral_peaks_multi`].
 pub fn spectral_peaks(samples: &[f64], fs_hz: f64, s: &AutoBandSettings) -> Result<Vec<f64>> {
+    spectral_peaks_multi(&[samples], fs_hz, s)
+}
+
+/// Peak frequencies (Hz, ascending) of the power spectrum summed over `channels` (each from its
+/// onset, each normalised to unit energy so that one loud sensor does not decide alone),
+/// zero-padded, smoothed over [`SMOOTHING_RECORDS`] / T: local maxima within the range and
+/// threshold whose prominence is at least [`PEAK_PROMINENCE_DB`], refined by parabolic
+/// interpolation. Of two peaks closer than the larger one's half-power (−3 dB) width — about
+/// 2·D·f, the spacing below which two modes are one peak — and closer than `min_spacing_hz`,
+/// only the larger is kept.
+pub fn spectral_peaks_multi(
+    channels: &[&[f64]],
+    fs_hz: f64,
+    s: &AutoBandSettings,
+) -> Result<Vec<f64>> {
     if !(fs_hz.is_finite() && fs_hz > 0.0) {
         return Err(Error::setting(
             "fs",
             format!("expected a positive sample rate in Hz, got {fs_hz}"),
         ));
     }
-    if samples.len() < 4 || samples.iter().any(|x| !x.is_finite()) {
+    let longest = channels.iter().map(|c| c.len()).max().unwrap_or(0);
+    if longest < 4 || channels.iter().any(|c| c.iter().any(|x| !x.is_finite())) {
         return Err(Error::setting(
             "--bands auto",
-            format!(
-                "expected at least 4 finite samples to find modes, got {} samples",
-                samples.len()
-            ),
+            format!("expected at least 4 finite samples to find modes, got {longest} samples"),
         ));
     }
     if !(s.zero_pad >= 1 && s.zero_pad <= 64 && s.threshold_db >= 0.0 && s.min_spacing_hz >= 0.0) {
@@ -107,42 +142,61 @@ pub fn spectral_peaks(samples: &[f64], fs_hz: f64, s: &AutoBandSettings) -> Resu
             "expected zero_pad 1…64, threshold_db >= 0 and min_spacing_hz >= 0",
         ));
     }
-    let n_fft = samples.len().next_power_of_two() * s.zero_pad;
+    let n_fft = longest.next_power_of_two() * s.zero_pad;
     let mut planner = RealFftPlanner::<f64>::new();
     let fft = planner.plan_fft_forward(n_fft);
-    let mut input = fft.make_input_vec();
-    input[..samples.len()].copy_from_slice(samples);
-    let mut spectrum = fft.make_output_vec();
-    fft.process(&mut input, &mut spectrum)
-        .map_err(|e| Error::setting("--bands auto", format!("FFT failed: {e}")))?;
+    let mut power = vec![0.0; n_fft / 2 + 1];
+    for samples in channels {
+        let energy: f64 = samples.iter().map(|x| x * x).sum();
+        if energy.is_nan() || energy <= 0.0 {
+            continue;
+        }
+        let mut input = fft.make_input_vec();
+        input[..samples.len()].copy_from_slice(samples);
+        let mut spectrum = fft.make_output_vec();
+        fft.process(&mut input, &mut spectrum)
+            .map_err(|e| Error::setting("--bands auto", format!("FFT failed: {e}")))?;
+        for (p, c) in power.iter_mut().zip(&spectrum) {
+            *p += c.norm_sqr() / energy;
+        }
+    }
     let bin_hz = fs_hz / n_fft as f64;
-    let db: Vec<f64> = spectrum
-        .iter()
-        .map(|c| 10.0 * c.norm_sqr().max(1e-300).log10())
-        .collect();
+    let half = (SMOOTHING_RECORDS * fs_hz / longest as f64 / bin_hz / 2.0).round() as usize;
+    let db = smoothed_db(&power, half);
     let k_lo = ((s.f_min_hz / bin_hz).ceil().max(1.0) as usize).min(db.len() - 1);
     let k_hi = ((s.f_max_hz / bin_hz).floor().min((db.len() - 2) as f64)) as usize;
     if k_hi <= k_lo {
         return Ok(Vec::new());
     }
-    let top = db[k_lo..=k_hi].iter().cloned().fold(f64::MIN, f64::max);
-    let mut peaks: Vec<(f64, f64)> = (k_lo..=k_hi)
-        .filter(|&k| db[k] > db[k - 1] && db[k] >= db[k + 1] && db[k] >= top - s.threshold_db)
-        .map(|k| {
-            let (a, b, c) = (db[k - 1], db[k], db[k + 1]);
+    let range = &db[k_lo..=k_hi];
+    let top = range.iter().cloned().fold(f64::MIN, f64::max);
+    let mut peaks: Vec<(f64, f64, f64)> = (1..range.len() - 1)
+        .filter(|&i| range[i] > range[i - 1] && range[i] >= range[i + 1])
+        .filter(|&i| range[i] >= top - s.threshold_db)
+        .filter(|&i| prominence_db(range, i) >= PEAK_PROMINENCE_DB)
+        .map(|i| {
+            let (a, b, c) = (range[i - 1], range[i], range[i + 1]);
             let den = a - 2.0 * b + c;
             let p = if den < 0.0 { 0.5 * (a - c) / den } else { 0.0 };
-            ((k as f64 + p) * bin_hz, b - 0.25 * (a - c) * p)
+            let f = (k_lo as f64 + i as f64 + p) * bin_hz;
+            (
+                f,
+                b - 0.25 * (a - c) * p,
+                half_power_width(range, i) * bin_hz,
+            )
         })
         .collect();
-    // Largest first; drop peaks too close to a larger one; keep at most max_peaks.
+    // Largest first; drop peaks within a larger one's half-power width or min spacing.
     peaks.sort_by(|x, y| y.1.total_cmp(&x.1));
-    let mut kept: Vec<(f64, f64)> = Vec::new();
+    let mut kept: Vec<(f64, f64, f64)> = Vec::new();
     for p in peaks {
         if kept.len() >= s.max_peaks {
             break;
         }
-        if kept.iter().all(|q| (q.0 - p.0).abs() >= s.min_spacing_hz) {
+        if kept
+            .iter()
+            .all(|q| (q.0 - p.0).abs() >= s.min_spacing_hz.max(q.2))
+        {
             kept.push(p);
         }
     }
@@ -151,10 +205,56 @@ pub fn spectral_peaks(samples: &[f64], fs_hz: f64, s: &AutoBandSettings) -> Resu
     Ok(f)
 }
 
-/// `--bands auto`: bands around the spectral peaks of `samples` (see [`spectral_peaks`] and
-/// [`bands_around_modes`]). Errors when no peak is found.
-pub fn auto_bands(samples: &[f64], fs_hz: f64, s: &AutoBandSettings) -> Result<Vec<Band>> {
-    let peaks = spectral_peaks(samples, fs_hz, s)?;
+/// 10 log10 of `power` averaged over ±`half` bins (fewer at the ends).
+fn smoothed_db(power: &[f64], half: usize) -> Vec<f64> {
+    let mut prefix = vec![0.0; power.len() + 1];
+    for (k, p) in power.iter().enumerate() {
+        prefix[k + 1] = prefix[k] + p;
+    }
+    (0..power.len())
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(power.len()));
+            10.0 * ((prefix[b] - prefix[a]) / (b - a) as f64)
+                .max(1e-300)
+                .log10()
+        })
+        .collect()
+}
+
+/// Height of peak `i` of `db` above the higher of its two bases (the lowest point between it and
+/// the nearest higher value on each side, or the end).
+fn prominence_db(db: &[f64], i: usize) -> f64 {
+    let base = |it: &mut dyn Iterator<Item = usize>| {
+        let mut low = db[i];
+        for k in it {
+            if db[k] > db[i] {
+                break;
+            }
+            low = low.min(db[k]);
+        }
+        low
+    };
+    let left = base(&mut (0..i).rev());
+    let right = base(&mut (i + 1..db.len()));
+    db[i] - left.max(right)
+}
+
+/// Width, in bins, of peak `i` of `db` where it is 3 dB down on both sides.
+fn half_power_width(db: &[f64], i: usize) -> f64 {
+    let level = db[i] - 3.0;
+    let left = (0..i).rev().find(|&k| db[k] < level).unwrap_or(0);
+    let right = (i + 1..db.len())
+        .find(|&k| db[k] < level)
+        .unwrap_or(db.len() - 1);
+    (right - left) as f64
+}
+
+/// `--bands auto`: bands around the spectral peaks of `channels` (each from its onset; see
+/// [`spectral_peaks_multi`] and [`bands_around_modes`]), each at least `min_width_hz` wide so
+/// that a buffering bank's transient cut leaves enough of the record. Errors when no peak is
+/// found.
+pub fn auto_bands(channels: &[&[f64]], fs_hz: f64, s: &AutoBandSettings) -> Result<Vec<Band>> {
+    let peaks = spectral_peaks_multi(channels, fs_hz, s)?;
     if peaks.is_empty() {
         return Err(Error::setting(
             "--bands auto",
@@ -165,8 +265,13 @@ pub fn auto_bands(samples: &[f64], fs_hz: f64, s: &AutoBandSettings) -> Result<V
         ));
     }
     let nyquist = 0.5 * fs_hz;
-    let mut bands = bands_around_modes(&peaks, s.max_width_hz)?;
+    let mut bands = bands_around_modes(&peaks, s.max_width_hz.max(s.min_width_hz))?;
     for b in &mut bands {
+        let missing = s.min_width_hz - b.width_hz();
+        if missing > 0.0 {
+            b.lo_hz = (b.lo_hz - 0.5 * missing).max(0.5 * b.lo_hz);
+            b.hi_hz += 0.5 * missing;
+        }
         b.hi_hz = b.hi_hz.min(nyquist);
     }
     Ok(bands)

@@ -169,6 +169,11 @@ pub(crate) fn mode_z_inv(
         .exp()
 }
 
+/// Default transient cut factor of the buffering banks (Goyder, octave): each band drops
+/// `BANK_CUT_FACTOR / B` seconds at the end of a reversed decay, where the backward filter's
+/// start-up transient lands.
+pub const BANK_CUT_FACTOR: f64 = 3.0;
+
 /// Checks the settings that the buffering filter banks (Goyder, octave) share: frame period in ms
 /// (> 0), the transient cut factor (≥ 0) and the longest decay buffered in s (1/fs to 1e10/fs).
 /// `bank` names the bank in the error.
@@ -202,17 +207,50 @@ pub(crate) fn check_bank_settings(
 }
 
 /// Resolution of a filter bank with frames `hop` samples apart: its time resolution is about
-/// 1/B and its frequency resolution B for the narrowest band B.
-pub(crate) fn bank_resolution(bands: &[Band], hop: usize, sample_rate_hz: f64) -> Resolution {
+/// 1/B, or the filters' longest rise time `rise_s` when that is longer (a steep filter rings up
+/// over its group delay), and its frequency resolution B for the narrowest band B.
+pub(crate) fn bank_resolution(
+    bands: &[Band],
+    hop: usize,
+    sample_rate_hz: f64,
+    rise_s: f64,
+) -> Resolution {
     let b_min = bands
         .iter()
         .map(|b| b.width_hz())
         .fold(f64::INFINITY, f64::min);
     Resolution {
         frame_period_s: hop as f64 / sample_rate_hz,
-        time_resolution_s: 1.0 / b_min,
+        time_resolution_s: (1.0 / b_min).max(rise_s),
         frequency_resolution_hz: b_min,
     }
+}
+
+/// Group delay, in samples, of a cascade of biquads `[b0, b1, b2, a1, a2]` at `f_hz`:
+/// τ = Re(Σ k c_k z⁻ᵏ / Σ c_k z⁻ᵏ) of the numerator minus that of the denominator, per section.
+/// A band-pass's envelope peaks about one group delay after an impulse, so this is how long a
+/// steep bank takes to ring up.
+pub(crate) fn cascade_group_delay_samples(
+    sections: impl IntoIterator<Item = [f64; 5]>,
+    f_hz: f64,
+    fs_hz: f64,
+) -> f64 {
+    use rustfft::num_complex::Complex;
+    let z1 = Complex::from_polar(1.0, -2.0 * std::f64::consts::PI * f_hz / fs_hz);
+    let z2 = z1 * z1;
+    let delay = |c: [f64; 3]| {
+        let sum = c[0] + z1 * c[1] + z2 * c[2];
+        let moment = z1 * c[1] + z2 * (2.0 * c[2]);
+        if sum.norm() > 0.0 {
+            (moment / sum).re
+        } else {
+            0.0
+        }
+    };
+    sections
+        .into_iter()
+        .map(|[b0, b1, b2, a1, a2]| delay([b0, b1, b2]) - delay([1.0, a1, a2]))
+        .sum()
 }
 
 /// Appends `samples` to a decay buffer of at most `max_samples`; returns true when some did not
@@ -223,49 +261,25 @@ pub(crate) fn buffer_bounded(buffer: &mut Vec<f64>, max_samples: usize, samples:
     samples.len() > room
 }
 
-/// A band's decay starts where its energy first comes within this many dB of its peak
-/// (ISO 3382-1's start of the impulse response, applied per band by the buffering banks).
-pub const BAND_ONSET_LEVEL_DB: f64 = 20.0;
-
-/// Per band, the first frame whose energy comes within [`BAND_ONSET_LEVEL_DB`] of the band's
-/// peak among its first `band_frames[b]` frames. `energy` holds `n_frames × nb` values, frame
-/// by frame. A band without energy starts at frame 0.
-pub(crate) fn band_onset_frames(energy: &[f64], nb: usize, band_frames: &[usize]) -> Vec<usize> {
-    let level = 10f64.powf(-BAND_ONSET_LEVEL_DB / 10.0);
-    (0..nb)
-        .map(|b| {
-            let n = band_frames[b].min(energy.len() / nb.max(1));
-            let e = |k: usize| energy[k * nb + b];
-            let peak = (0..n).map(e).fold(0.0f64, f64::max);
-            if peak > 0.0 {
-                (0..n).position(|k| e(k) >= peak * level).unwrap_or(0)
-            } else {
-                0
-            }
-        })
-        .collect()
-}
-
-/// Emits the frames of a buffering bank: band b holds frames `onsets[b] .. band_frames[b]`
-/// (its own start and its own transient cut) and is marked inactive elsewhere; frames before
-/// every band's start are not emitted.
+/// Emits the frames of a buffering bank: band b holds frames `0 .. band_frames[b]` (its own
+/// transient cut) and is marked inactive after them. Each band's own start (its energy within
+/// 20 dB of its peak) is found by the estimator
+/// ([`crate::decay::schroeder::DECAY_START_LEVEL_DB`]), the same for every front end.
 pub(crate) fn emit_band_frames(
     sink: &mut dyn FrameSink,
     energy: &[f64],
     frequency_hz: &[f64],
-    onsets: &[usize],
     band_frames: &[usize],
 ) {
-    let nb = onsets.len();
+    let nb = band_frames.len();
     if nb == 0 {
         return;
     }
     let n_frames = energy.len() / nb;
-    let first = onsets.iter().copied().min().unwrap_or(0);
     let mut active = vec![true; nb];
-    for k in first..n_frames {
-        for ((a, &on), &end) in active.iter_mut().zip(onsets).zip(band_frames) {
-            *a = k >= on && k < end;
+    for k in 0..n_frames {
+        for (a, &end) in active.iter_mut().zip(band_frames) {
+            *a = k < end;
         }
         sink.frame(Frame {
             energy: &energy[k * nb..(k + 1) * nb],

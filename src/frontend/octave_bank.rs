@@ -10,9 +10,10 @@
 //! standard remedy for bands with a small B·T60 (Jacobsen & Rindel 1987). Reversed filtering also
 //! smears each band's share of the first arrival to before the onset: the decay therefore starts
 //! with a pre-roll of `cut_factor / B_min` seconds (what preceded the onset, zeros where the
-//! record has nothing), and each band starts where its energy first comes within 20 dB of its
-//! peak ([`super::BAND_ONSET_LEVEL_DB`], ISO 3382-1's start rule, per band). Without this,
-//! 43–78 % of the band energy at 125 Hz–2 kHz of a measured living-room RIR was discarded.
+//! record has nothing); the estimator starts each band where its energy first comes within
+//! 20 dB of its peak ([`crate::decay::schroeder::DECAY_START_LEVEL_DB`], ISO 3382-1's start
+//! rule, per band). Without this, 43–78 % of the band energy at 125 Hz–2 kHz of a measured
+//! living-room RIR was discarded.
 
 use biquad::{Biquad, Coefficients, DirectForm2Transposed};
 use rustfft::num_complex::Complex;
@@ -43,7 +44,7 @@ impl Default for OctaveBankSettings {
             order: 3,
             frame_period_ms: 2.0,
             direction: FilterDirection::Reversed,
-            cut_factor: 3.0,
+            cut_factor: super::BANK_CUT_FACTOR,
             max_decay_s: 60.0,
         }
     }
@@ -138,6 +139,8 @@ pub struct OctaveBankFrontEnd {
     smooth: Vec<[f64; 2]>,
     smooth_factor: Vec<f64>,
     hop: usize,
+    /// The longest group delay of the bands at their centres, s: how long the bank rings up.
+    rise_s: f64,
     /// Per band, the samples dropped at the end of a reversed decay (cut_factor / B).
     band_cut_samples: Vec<usize>,
     /// Samples before the onset a reversed decay starts with (the widest reach, cut_factor / B_min).
@@ -173,7 +176,7 @@ impl OctaveBankFrontEnd {
             .iter()
             .map(|b| butterworth_bandpass(settings.order, b.lo_hz, b.hi_hz, sample_rate_hz))
             .collect::<Result<Vec<_>>>()?;
-        let sections = designs
+        let sections: Vec<Vec<[f64; 5]>> = designs
             .iter()
             .map(|d| d.iter().map(|c| [c.b0, c.b1, c.b2, c.a1, c.a2]).collect())
             .collect();
@@ -200,6 +203,14 @@ impl OctaveBankFrontEnd {
             })
             .collect();
         let pre_roll = band_cut_samples.iter().copied().max().unwrap_or(0);
+        let rise_s = bands
+            .iter()
+            .zip(&sections)
+            .map(|(b, s): (&Band, &Vec<[f64; 5]>)| {
+                super::cascade_group_delay_samples(s.iter().copied(), b.center_hz, sample_rate_hz)
+            })
+            .fold(0.0, f64::max)
+            / sample_rate_hz;
         let nb = bands.len();
         Ok(OctaveBankFrontEnd {
             bands: bands.to_vec(),
@@ -215,6 +226,7 @@ impl OctaveBankFrontEnd {
                 .map(|b| (-(hop as f64) * b.lo_hz / (2.0 * sample_rate_hz)).exp())
                 .collect(),
             hop,
+            rise_s,
             band_cut_samples,
             pre_roll,
             max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
@@ -312,7 +324,7 @@ impl FrontEnd for OctaveBankFrontEnd {
     }
 
     fn resolution(&self) -> Resolution {
-        super::bank_resolution(&self.bands, self.hop, self.sample_rate_hz)
+        super::bank_resolution(&self.bands, self.hop, self.sample_rate_hz, self.rise_s)
     }
 
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
@@ -374,8 +386,7 @@ impl FrontEnd for OctaveBankFrontEnd {
                 freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
             }
         }
-        let onsets = super::band_onset_frames(&frames, nb, &band_frames);
-        super::emit_band_frames(sink, &frames, &freqs, &onsets, &band_frames);
+        super::emit_band_frames(sink, &frames, &freqs, &band_frames);
         self.clear_filters();
         self.buffer = buffer;
         self.buffer.clear();

@@ -76,7 +76,7 @@ pub(super) fn judge_bands(
         }
     }
     for (est, e) in estimates.iter_mut().zip(estimators) {
-        if first_restart(e.energies(), rise_frames).is_some() {
+        if first_restart(e.decay_energies(), rise_frames).is_some() {
             est.withhold(Flag::MergedHits);
         }
     }

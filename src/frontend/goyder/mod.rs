@@ -67,7 +67,7 @@ impl Default for GoyderSettings {
         GoyderSettings {
             order: 4,
             frame_period_ms: 1.0,
-            cut_factor: 3.0,
+            cut_factor: super::BANK_CUT_FACTOR,
             max_decay_s: 60.0,
             direction: FilterDirection::Reversed,
         }
@@ -187,7 +187,7 @@ impl FrontEnd for GoyderFrontEnd {
     }
 
     fn resolution(&self) -> Resolution {
-        super::bank_resolution(&self.bands, self.hop, self.sample_rate_hz)
+        super::bank_resolution(&self.bands, self.hop, self.sample_rate_hz, 0.0)
     }
 
     fn process(&mut self, samples: &[f64], _sink: &mut dyn FrameSink) {
