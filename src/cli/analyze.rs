@@ -9,6 +9,7 @@ use anyhow::Context;
 use super::bands_arg::{BandArgs, InputFormatArgs};
 use super::compare::DirectionArg;
 use super::{EXIT_OK, EXIT_PARTIAL};
+use crate::frontend::auto_bands::frame_period_for_bands_s;
 use crate::frontend::bands::Band;
 use crate::frontend::goyder::{GoyderFrontEnd, GoyderSettings};
 use crate::frontend::octave_bank::{OctaveBankFrontEnd, OctaveBankSettings};
@@ -197,7 +198,7 @@ pub struct PreparedRun {
 /// Resolves bands (reading the input whole for `--bands auto`), front end and settings;
 /// prints band warnings to stderr.
 pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Result<PreparedRun> {
-    let args = &args.with_preset();
+    let mut args = args.with_preset();
     let info = source.info().clone();
     let fs = info.sample_rate_hz;
     let (source, bands, warnings): (Box<dyn Source>, _, _) = if args.bands.needs_samples() {
@@ -208,6 +209,18 @@ pub fn prepare(args: &PipelineArgs, mut source: Box<dyn Source>) -> anyhow::Resu
             .map(|c| &c[find_onset(c, args.onset_level_db).unwrap_or(0)..])
             .collect();
         let (bands, warnings) = args.bands.resolve_with(fs, Some(&decays))?;
+        if args.bands.frame_ms.is_none() {
+            // Mode-centred bands on a fast structural decay need frames finer than the banks'
+            // default; the finest any bank uses by default otherwise.
+            let fine_ms = 1e3 * frame_period_for_bands_s(&bands);
+            let default_ms = match args.front_end {
+                FrontEndChoice::Goyder => GoyderSettings::default().frame_period_ms,
+                _ => OctaveBankSettings::default().frame_period_ms,
+            };
+            if fine_ms < default_ms {
+                args.bands.frame_ms = Some(fine_ms);
+            }
+        }
         (
             Box::new(MemorySource::new(info.clone(), data)?),
             bands,

@@ -345,6 +345,20 @@ fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
     (before < 2.0 * tail && pnr < 150.0).then_some(pnr)
 }
 
+/// Time, s, at which the plain Schroeder curve of `energies` first falls 10 dB below its start
+/// (the whole record when it never does).
+fn ten_db_time_s(energies: &[f64], frame_period_s: f64) -> f64 {
+    let total: f64 = energies.iter().sum();
+    let mut rest = total;
+    for (k, e) in energies.iter().enumerate() {
+        if rest <= 0.1 * total {
+            return k as f64 * frame_period_s;
+        }
+        rest -= e;
+    }
+    energies.len() as f64 * frame_period_s
+}
+
 /// The Schroeder curve of `energies` minus the noise energy, truncated at Lundeby's
 /// intersection time, with the tail beyond it added back (METHODS.md §2.2). `None` when Lundeby's method fails.
 fn noise_compensated_curve(
@@ -353,9 +367,19 @@ fn noise_compensated_curve(
     f_center_hz: f64,
     compensation: NoiseCompensation,
 ) -> Option<Vec<f64>> {
+    // pyrato's per-band block length (800/f + 10) ms, at least one frame; the robust variant
+    // caps it at a fifth of the time the curve takes to fall 10 dB (Lundeby's own 5 blocks per
+    // 10 dB): a 4 kHz structural mode with T60 = 25 ms fell 26 dB within pyrato's 10 ms block
+    // and was refused as noise-limited with 70 dB of range.
+    let pyrato_block_s = (800.0 / f_center_hz.max(1.0) + 10.0) * 1e-3;
+    let block_s = match compensation {
+        NoiseCompensation::Pyrato => pyrato_block_s,
+        NoiseCompensation::Robust => {
+            pyrato_block_s.min(0.2 * ten_db_time_s(energies, frame_period_s))
+        }
+    };
     let settings = LundebySettings {
-        // pyrato's per-band block length (800/f + 10) ms, at least one frame.
-        initial_block_s: ((800.0 / f_center_hz.max(1.0) + 10.0) * 1e-3).max(frame_period_s),
+        initial_block_s: block_s.max(frame_period_s),
         first_regression_end: match compensation {
             NoiseCompensation::Robust => FirstRegressionEnd::FirstBelow,
             NoiseCompensation::Pyrato => FirstRegressionEnd::LastAbove,
