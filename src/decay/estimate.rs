@@ -345,23 +345,20 @@ fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
     (before < 2.0 * tail && pnr < 150.0).then_some(pnr)
 }
 
-/// Time, s, at which the plain Schroeder curve of `energies` first falls 10 dB below its start
-/// (the whole record when it never does).
-fn ten_db_time_s(energies: &[f64], frame_period_s: f64) -> f64 {
-    let total: f64 = energies.iter().sum();
-    let mut rest = total;
-    for (k, e) in energies.iter().enumerate() {
-        if rest <= 0.1 * total {
-            return k as f64 * frame_period_s;
-        }
-        rest -= e;
-    }
-    energies.len() as f64 * frame_period_s
+/// Time, s, at which the Schroeder curve `edc` first falls 10 dB below its start (the whole
+/// record when it never does).
+fn ten_db_time_s(edc: &[f64], frame_period_s: f64) -> f64 {
+    let start = edc.first().copied().unwrap_or(0.0);
+    edc.iter()
+        .position(|&e| e <= 0.1 * start)
+        .unwrap_or(edc.len()) as f64
+        * frame_period_s
 }
 
-/// The Schroeder curve of `energies` minus the noise energy, truncated at Lundeby's
+/// The Schroeder curve of `energies` (plain: `edc`) minus the noise energy, truncated at Lundeby's
 /// intersection time, with the tail beyond it added back (METHODS.md §2.2). `None` when Lundeby's method fails.
 fn noise_compensated_curve(
+    edc: &[f64],
     energies: &[f64],
     frame_period_s: f64,
     f_center_hz: f64,
@@ -374,9 +371,7 @@ fn noise_compensated_curve(
     let pyrato_block_s = (800.0 / f_center_hz.max(1.0) + 10.0) * 1e-3;
     let block_s = match compensation {
         NoiseCompensation::Pyrato => pyrato_block_s,
-        NoiseCompensation::Robust => {
-            pyrato_block_s.min(0.2 * ten_db_time_s(energies, frame_period_s))
-        }
+        NoiseCompensation::Robust => pyrato_block_s.min(0.2 * ten_db_time_s(edc, frame_period_s)),
     };
     let settings = LundebySettings {
         initial_block_s: block_s.max(frame_period_s),
@@ -416,6 +411,7 @@ pub fn estimate_from_curve(
     let mut noise_compensated = false;
     let curve: Vec<f64> = match noise {
         Some(_) => match noise_compensated_curve(
+            edc,
             energies,
             frame_period_s,
             f_center_hz,
