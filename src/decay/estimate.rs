@@ -1,8 +1,11 @@
 //! From a Schroeder curve to reverberation times, damping ratios, quality figures and flags.
 //!
-//! A number is only reported when the curve supports it: the curve must reach the lower limit of
-//! the evaluation range and at least [`EstimateSettings::min_points`] frames must lie in it;
-//! otherwise the estimate is empty and a [`Flag`] says why.
+//! A number is only reported when the curve supports it: a noise floor must lie
+//! [`EstimateSettings::noise_margin_db`] below the lower limit of the evaluation range, a record
+//! that ends while the decay still falls must end below that limit (the band energy, not the
+//! backward integral, which always plunges at the end), the curve must reach it and at least
+//! [`EstimateSettings::min_points`] frames must lie in it; otherwise the estimate is empty and a
+//! [`Flag`] says why. The check runs for every number (EDT, T20, T30) on its own range.
 
 use super::damping::damping_ratio;
 use super::lundeby::{compensated_edc, lundeby, FirstRegressionEnd, LundebySettings};
@@ -15,7 +18,8 @@ use super::regression::{fit_line, LineFit};
 pub enum Flag {
     /// The band received no energy.
     NoEnergy,
-    /// The record ends before the decay curve reaches the lower limit of the range.
+    /// The record ends (no noise floor: the decay is cut off, not buried) before the band energy
+    /// has fallen below the lower limit of the range.
     TooShort,
     /// The curve reaches the range, but fewer than the minimum number of frames fall inside it:
     /// the front end's frame rate is too low for this decay (use a shorter window or a filter bank).
@@ -282,7 +286,7 @@ fn fit_range(
     levels_db: &[f64],
     times_s: &[f64],
     range: EvaluationRange,
-    noise: Option<f64>,
+    floor: Floor,
     settings: &EstimateSettings,
 ) -> Result<RangeFit, Flag> {
     let min_points = settings.min_points;
@@ -290,10 +294,16 @@ fn fit_range(
         EvaluationRange::Edt => settings.edt_limits_db,
         r => r.limits_db(),
     };
-    if let Some(pnr_db) = noise {
-        if pnr_db < -lower + settings.noise_margin_db {
-            return Err(Flag::NoiseLimited);
+    let noise = match floor {
+        Floor::Noise(pnr_db) => Some(pnr_db),
+        _ => None,
+    };
+    match floor {
+        Floor::Noise(db) if db < -lower + settings.noise_margin_db => {
+            return Err(Flag::NoiseLimited)
         }
+        Floor::RecordEnd(db) if db < -lower => return Err(Flag::TooShort),
+        _ => {}
     }
     let last = *levels_db.last().ok_or(Flag::NoEnergy)?;
     if last > lower {
@@ -322,8 +332,26 @@ fn fit_range(
         fit,
         first,
         end,
-        tail_margin_db: lower - last,
+        tail_margin_db: match floor {
+            Floor::RecordEnd(db) => db + lower,
+            _ => lower - last,
+        },
     })
+}
+
+/// What the decay ends in, as dB below the peak frame energy: the range check of every reported
+/// number compares it with the range's lower limit plus [`EstimateSettings::noise_margin_db`].
+#[derive(Clone, Copy, Debug)]
+enum Floor {
+    /// A noise floor (the record end no longer decays).
+    Noise(f64),
+    /// The record ends while the decay still falls, at this level (mean of its last tenth): a
+    /// truncated or short record, whose backward integral plunges at the end and would
+    /// otherwise let a 7.5 dB decay give an EDT (issue 15). A number needs the end below the
+    /// range's lower limit; less than 10 dB below it raises [`Flag::TruncationBias`].
+    RecordEnd(f64),
+    /// Too few frames to tell.
+    Unknown,
 }
 
 /// Noise floor check on the band energies: `Some(peak-to-noise ratio in dB)` when the last 10 %
@@ -343,6 +371,18 @@ fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
     }
     let pnr = 10.0 * (peak / tail).log10();
     (before < 2.0 * tail && pnr < 150.0).then_some(pnr)
+}
+
+/// Peak frame energy over the mean of the last tenth of the frames, in dB (`None` when there are
+/// fewer than two frames or no energy at the end).
+fn peak_to_tail_db(energies: &[f64]) -> Option<f64> {
+    let peak = energies.iter().cloned().fold(0.0, f64::max);
+    if energies.len() < 2 || peak <= 0.0 {
+        return None;
+    }
+    let tenth = (energies.len() / 10).max(1);
+    let tail = energies[energies.len() - tenth..].iter().sum::<f64>() / tenth as f64;
+    (tail > 0.0).then(|| 10.0 * (peak / tail).log10())
 }
 
 /// Time, s, at which the Schroeder curve `edc` first falls 10 dB below its start (the whole
@@ -436,23 +476,22 @@ pub fn estimate_from_curve(
     let times_s: Vec<f64> = (0..curve.len())
         .map(|k| k as f64 * frame_period_s)
         .collect();
-    let fit_of = |r| fit_range(&levels_db, &times_s, r, noise, settings);
+    let dynamic_range_db = peak_to_tail_db(energies);
+    let floor = match (noise, dynamic_range_db) {
+        (Some(pnr_db), _) => Floor::Noise(pnr_db),
+        (None, Some(db)) => Floor::RecordEnd(db),
+        (None, None) => Floor::Unknown,
+    };
+    let fit_of = |r| fit_range(&levels_db, &times_s, r, floor, settings);
     let t_of = |r| fit_of(r).ok().and_then(|f| f.fit.t60_s());
 
     let mut est = DecayEstimate {
         edt_s: t_of(EvaluationRange::Edt),
         t20_s: t_of(EvaluationRange::T20),
         t30_s: t_of(EvaluationRange::T30),
+        dynamic_range_db,
         ..Default::default()
     };
-    let peak = energies.iter().cloned().fold(0.0, f64::max);
-    if energies.len() >= 2 && peak > 0.0 {
-        let tenth = (energies.len() / 10).max(1);
-        let tail = energies[energies.len() - tenth..].iter().sum::<f64>() / tenth as f64;
-        if tail > 0.0 {
-            est.dynamic_range_db = Some(10.0 * (peak / tail).log10());
-        }
-    }
 
     let (w_first, w_end) = match fit_of(settings.range) {
         Ok(rf) => {
