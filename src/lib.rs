@@ -23,6 +23,7 @@ pub mod decay;
 pub mod diagnose;
 pub mod error;
 pub mod frontend;
+pub mod modal;
 pub mod output;
 pub mod pipeline;
 pub mod plot;

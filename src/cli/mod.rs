@@ -7,6 +7,7 @@ pub mod compare;
 pub mod demo;
 pub mod diagnose;
 pub mod map;
+pub mod modal;
 pub mod modes;
 pub mod resynth;
 pub mod simulate;
@@ -53,6 +54,8 @@ pub enum Command {
     Resynth(resynth::ResynthArgs),
     /// Locate where the model's damping differs from the recordings, update it, show the fit.
     Diagnose(diagnose::DiagnoseArgs),
+    /// Modal identification from all channels at once: modes.csv, shapes.csv, stabilisation.png.
+    Modal(modal::ModalArgs),
     /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
     Modes(modes::ModesArgs),
     /// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
@@ -80,6 +83,7 @@ pub fn main_exit_code() -> i32 {
         Command::Synth(args) => synth::run(args).map(|_| EXIT_OK),
         Command::Simulate(args) => simulate::run(args).map(|_| EXIT_OK),
         Command::Modes(args) => modes::run(args).map(|_| EXIT_OK),
+        Command::Modal(args) => modal::run(args).map(|_| EXIT_OK),
         Command::Compare(args) => compare::run(args).map(|_| EXIT_OK),
         Command::Map(args) => map::run(args),
         Command::Resynth(args) => resynth::run(args).map(|_| EXIT_OK),

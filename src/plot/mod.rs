@@ -3,9 +3,11 @@
 //! system fonts are needed.
 
 mod map;
+mod modal;
 mod resynth;
 
 pub use map::damping_map;
+pub use modal::{mode_shape, stabilisation_diagram};
 pub use resynth::resynthesis_figure;
 
 use std::path::Path;

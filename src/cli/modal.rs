@@ -1,0 +1,228 @@
+//! `dampscope modal INPUT --fmax HZ --out DIR`: multichannel modal identification
+//! ([`crate::modal::identify`]); this module only parses, calls and writes.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use anyhow::Context;
+
+use super::bands_arg::InputFormatArgs;
+use crate::modal::{identify, ModalResult, ModalSettings, Recordings};
+use crate::source::stdin::open_input;
+
+/// Most samples per channel `modal` reads (the identification holds the whole record).
+pub const MAX_MODAL_SAMPLES: usize = 1 << 26;
+
+/// Arguments of `dampscope modal`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ModalArgs {
+    /// A recording set directory, a .wav/.csv file, or `-` for standard input.
+    pub input: String,
+    /// How to read raw or headerless input.
+    #[command(flatten)]
+    pub input_format: InputFormatArgs,
+    /// Lowest frequency of interest, Hz.
+    #[arg(long, default_value_t = 0.5, value_name = "HZ")]
+    pub fmin: f64,
+    /// Highest frequency of interest, Hz.
+    #[arg(long, value_name = "HZ")]
+    pub fmax: f64,
+    /// Write modes.csv, shapes.csv, stabilisation.png and a shape figure per mode here.
+    #[arg(long, value_name = "DIR")]
+    pub out: PathBuf,
+    /// Narrowest sub-band, Hz (sub-bands are 40 % of their lower edge wide, within these limits).
+    #[arg(long, default_value_t = crate::modal::DEFAULT_SUBBANDS.min_width_hz, value_name = "HZ")]
+    pub min_band_width: f64,
+    /// Widest sub-band, Hz.
+    #[arg(long, default_value_t = crate::modal::DEFAULT_SUBBANDS.max_width_hz, value_name = "HZ")]
+    pub max_band_width: f64,
+    /// Highest model order swept per sub-band.
+    #[arg(long, default_value_t = crate::modal::DEFAULT_MAX_ORDER, value_name = "N")]
+    pub max_order: usize,
+    /// Analysis start in s (default: the sample after the peak of the summed squared channels).
+    #[arg(long, value_name = "S")]
+    pub start_s: Option<f64>,
+    /// Add white noise at this SNR on mean signal power, dB (for robustness studies).
+    #[arg(long, value_name = "DB")]
+    pub add_noise_db: Option<f64>,
+    /// Seed of --add-noise-db.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print read / identify / write times on stderr.
+    #[arg(long)]
+    pub timings: bool,
+}
+
+#[derive(serde::Serialize)]
+struct ModeRow {
+    mode: usize,
+    frequency_hz: f64,
+    damping_ratio: f64,
+    frequency_std_hz: f64,
+    damping_std: f64,
+    mpc: f64,
+    n_stable: usize,
+}
+
+#[derive(serde::Serialize)]
+struct ShapeRow<'a> {
+    mode: usize,
+    sensor: &'a str,
+    x: Option<f64>,
+    y: Option<f64>,
+    re: f64,
+    im: f64,
+    magnitude: f64,
+    phase_deg: f64,
+}
+
+/// The channels' mean power spectrum in dB, for the diagram's background.
+fn mean_spectrum_db(rec: &Recordings) -> Vec<(f64, f64)> {
+    use realfft::RealFftPlanner;
+    let n = rec.channels.first().map_or(0, Vec::len);
+    if n < 2 {
+        return Vec::new();
+    }
+    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let mut power = vec![0.0; n / 2 + 1];
+    let mut spectrum = fft.make_output_vec();
+    for x in &rec.channels {
+        let mut input = x.clone();
+        if fft.process(&mut input, &mut spectrum).is_ok() {
+            for (p, s) in power.iter_mut().zip(&spectrum) {
+                *p += s.norm_sqr();
+            }
+        }
+    }
+    power
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            (
+                k as f64 * rec.fs_hz / n as f64,
+                10.0 * p.max(1e-300).log10(),
+            )
+        })
+        .collect()
+}
+
+fn write_outputs(
+    args: &ModalArgs,
+    rec: &Recordings,
+    result: &ModalResult,
+    positions: Option<&[(f64, f64)]>,
+) -> anyhow::Result<()> {
+    let dir = &args.out;
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    super::write_csv(
+        &dir.join("modes.csv"),
+        result.modes.iter().enumerate().map(|(k, m)| ModeRow {
+            mode: k + 1,
+            frequency_hz: m.frequency_hz,
+            damping_ratio: m.damping_ratio,
+            frequency_std_hz: m.frequency_std_hz,
+            damping_std: m.damping_std,
+            mpc: m.mpc,
+            n_stable: m.n_stable,
+        }),
+    )?;
+    let mut rows = Vec::new();
+    for (k, m) in result.modes.iter().enumerate() {
+        for (c, v) in m.shape.iter().enumerate() {
+            rows.push(ShapeRow {
+                mode: k + 1,
+                sensor: &result.names[c],
+                x: positions.map(|p| p[c].0),
+                y: positions.map(|p| p[c].1),
+                re: v.re,
+                im: v.im,
+                magnitude: v.norm(),
+                phase_deg: v.arg().to_degrees(),
+            });
+        }
+    }
+    super::write_csv(&dir.join("shapes.csv"), rows)?;
+    crate::plot::stabilisation_diagram(
+        result,
+        &mean_spectrum_db(rec),
+        (args.fmin, args.fmax),
+        &dir.join("stabilisation.png"),
+    )?;
+    if let Some(p) = positions {
+        for (k, m) in result.modes.iter().enumerate() {
+            let re: Vec<f64> = m.shape.iter().map(|v| v.re).collect();
+            crate::plot::mode_shape(
+                &format!(
+                    "mode {}: {:.2} Hz, D = {:.2} %, MPC {:.2}",
+                    k + 1,
+                    m.frequency_hz,
+                    100.0 * m.damping_ratio,
+                    m.mpc
+                ),
+                p,
+                &re,
+                &dir.join(format!("shape-{:02}.png", k + 1)),
+            )?;
+        }
+    }
+    Ok(())
+}
+
+/// Runs `dampscope modal`.
+pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
+    let t0 = Instant::now();
+    let mut opened = open_input(&args.input, &args.input_format.options())?;
+    let mut rec = Recordings::from_source(opened.source.as_mut(), MAX_MODAL_SAMPLES)
+        .with_context(|| format!("reading {}", args.input))?;
+    if let Some(snr) = args.add_noise_db {
+        rec.add_noise_mean_power(snr, args.seed);
+    }
+    let positions: Option<Vec<(f64, f64)>> = opened
+        .sensors
+        .as_ref()
+        .map(|s| s.iter().map(|s| (s.x_m, s.y_m)).collect());
+    let t_read = t0.elapsed().as_secs_f64();
+    let settings = ModalSettings {
+        subbands: crate::modal::SubBandPlan {
+            min_width_hz: args.min_band_width,
+            max_width_hz: args.max_band_width,
+            ..crate::modal::DEFAULT_SUBBANDS
+        },
+        max_order: args.max_order,
+        start_s: args.start_s,
+        ..ModalSettings::new(args.fmin, args.fmax)
+    };
+    let result = identify(&rec, &settings)?;
+    let t_identify = t0.elapsed().as_secs_f64() - t_read;
+    for s in &result.skipped {
+        eprintln!(
+            "dampscope: sub-band {:.1}–{:.1} Hz gave no poles: {}",
+            s.band.lo_hz, s.band.hi_hz, s.reason
+        );
+    }
+    println!("mode,frequency_hz,damping_ratio,frequency_std_hz,damping_std,mpc,n_stable");
+    for (k, m) in result.modes.iter().enumerate() {
+        println!(
+            "{},{:.4},{:.6},{:.4},{:.6},{:.3},{}",
+            k + 1,
+            m.frequency_hz,
+            m.damping_ratio,
+            m.frequency_std_hz,
+            m.damping_std,
+            m.mpc,
+            m.n_stable
+        );
+    }
+    write_outputs(args, &rec, &result, positions.as_deref())?;
+    if args.timings {
+        eprintln!(
+            "timings: read {:.2} s, identify {:.2} s ({} channels × {} samples), write {:.2} s",
+            t_read,
+            t_identify,
+            rec.channels.len(),
+            rec.channels.first().map_or(0, Vec::len),
+            t0.elapsed().as_secs_f64() - t_read - t_identify
+        );
+    }
+    Ok(())
+}
