@@ -76,36 +76,6 @@ struct ShapeRow<'a> {
     phase_deg: f64,
 }
 
-/// The channels' mean power spectrum in dB, for the diagram's background.
-fn mean_spectrum_db(rec: &Recordings) -> Vec<(f64, f64)> {
-    use realfft::RealFftPlanner;
-    let n = rec.channels.first().map_or(0, Vec::len);
-    if n < 2 {
-        return Vec::new();
-    }
-    let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-    let mut power = vec![0.0; n / 2 + 1];
-    let mut spectrum = fft.make_output_vec();
-    for x in &rec.channels {
-        let mut input = x.clone();
-        if fft.process(&mut input, &mut spectrum).is_ok() {
-            for (p, s) in power.iter_mut().zip(&spectrum) {
-                *p += s.norm_sqr();
-            }
-        }
-    }
-    power
-        .iter()
-        .enumerate()
-        .map(|(k, p)| {
-            (
-                k as f64 * rec.fs_hz / n as f64,
-                10.0 * p.max(1e-300).log10(),
-            )
-        })
-        .collect()
-}
-
 fn write_outputs(
     args: &ModalArgs,
     rec: &Recordings,
@@ -144,7 +114,7 @@ fn write_outputs(
     super::write_csv(&dir.join("shapes.csv"), rows)?;
     crate::plot::stabilisation_diagram(
         result,
-        &mean_spectrum_db(rec),
+        &rec.mean_power_spectrum_db(),
         (args.fmin, args.fmax),
         &dir.join("stabilisation.png"),
     )?;

@@ -90,6 +90,38 @@ impl Recordings {
             }
         }
     }
+
+    /// The channels' summed power spectrum, (f in Hz, dB), for the stabilisation diagram's
+    /// background.
+    pub fn mean_power_spectrum_db(&self) -> Vec<(f64, f64)> {
+        use realfft::RealFftPlanner;
+        let n = self.channels.first().map_or(0, Vec::len);
+        if n < 2 {
+            return Vec::new();
+        }
+        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
+        let mut power = vec![0.0; n / 2 + 1];
+        let mut spectrum = fft.make_output_vec();
+        let mut input = fft.make_input_vec();
+        for x in &self.channels {
+            input.copy_from_slice(x);
+            if fft.process(&mut input, &mut spectrum).is_ok() {
+                for (p, s) in power.iter_mut().zip(&spectrum) {
+                    *p += s.norm_sqr();
+                }
+            }
+        }
+        power
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                (
+                    k as f64 * self.fs_hz / n as f64,
+                    10.0 * p.max(1e-300).log10(),
+                )
+            })
+            .collect()
+    }
 }
 
 /// How [`identify`] works.
