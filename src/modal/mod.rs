@@ -12,7 +12,9 @@
 //!
 //! The entry point is [`identify`]; it returns plain data ([`ModalResult`]).
 
+pub mod band;
 pub mod baseband;
+pub mod recordings;
 pub mod refine;
 pub mod shapes;
 pub mod stabilise;
@@ -22,8 +24,9 @@ use faer::c64;
 
 pub use baseband::SubBandPlan;
 use baseband::{plan_subbands, to_baseband, SubBand};
-use stabilise::{classify, select_modes, PoleClass, StabilityCriteria};
-use subspace::{compress, poles_by_order, HankelPlan};
+pub use recordings::Recordings;
+use stabilise::{PoleClass, StabilityCriteria};
+use subspace::HankelPlan;
 
 /// Default sub-band layout (see [`SubBandPlan`]): 10–40 Hz wide, 40 % of the lower edge, guards
 /// of a quarter of the width.
@@ -39,90 +42,6 @@ pub const DEFAULT_MAX_ORDER: usize = 40;
 pub const DEFAULT_MIN_ORDER: usize = 2;
 /// Default number of principal components the channels are compressed to.
 pub const DEFAULT_COMPRESSED_CHANNELS: usize = 32;
-
-/// Multichannel recordings of one test: impulse responses or free decays, one per sensor, all
-/// starting at the same instant.
-#[derive(Clone, Debug)]
-pub struct Recordings {
-    /// Sample rate, Hz.
-    pub fs_hz: f64,
-    /// Channel names (sensor ids).
-    pub names: Vec<String>,
-    /// Samples, one vector per channel, equal lengths.
-    pub channels: Vec<Vec<f64>>,
-}
-
-impl Recordings {
-    /// Reads every sample of `source` (at most `max_frames` per channel) into recordings.
-    pub fn from_source(
-        source: &mut dyn crate::source::Source,
-        max_frames: usize,
-    ) -> Result<Self, crate::source::SourceError> {
-        let info = source.info().clone();
-        let channels = crate::source::memory::read_all(source, max_frames)?;
-        Ok(Recordings {
-            fs_hz: info.sample_rate_hz,
-            names: info.channel_names,
-            channels,
-        })
-    }
-
-    /// Adds white Gaussian noise to every channel at `snr_db` **on mean signal power**: the
-    /// noise variance is the mean over channels of each channel's power over the whole record,
-    /// divided by 10^(snr/10) (far harsher on decays than a peak SNR). Seeded; channel `k` gets
-    /// its own stream.
-    pub fn add_noise_mean_power(&mut self, snr_db: f64, seed: u64) {
-        let n = self.channels.first().map_or(0, Vec::len).max(1) as f64;
-        let power = self
-            .channels
-            .iter()
-            .map(|x| x.iter().map(|v| v * v).sum::<f64>() / n)
-            .sum::<f64>()
-            / self.channels.len().max(1) as f64;
-        let sigma = (power / 10f64.powf(snr_db / 10.0)).sqrt();
-        for (k, x) in self.channels.iter_mut().enumerate() {
-            let mut g = crate::source::noise::GaussianNoise::new(
-                seed.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-                    .wrapping_add(k as u64),
-            );
-            for v in x.iter_mut() {
-                *v += sigma * g.next_gaussian();
-            }
-        }
-    }
-
-    /// The channels' summed power spectrum, (f in Hz, dB), for the stabilisation diagram's
-    /// background.
-    pub fn mean_power_spectrum_db(&self) -> Vec<(f64, f64)> {
-        use realfft::RealFftPlanner;
-        let n = self.channels.first().map_or(0, Vec::len);
-        if n < 2 {
-            return Vec::new();
-        }
-        let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
-        let mut power = vec![0.0; n / 2 + 1];
-        let mut spectrum = fft.make_output_vec();
-        let mut input = fft.make_input_vec();
-        for x in &self.channels {
-            input.copy_from_slice(x);
-            if fft.process(&mut input, &mut spectrum).is_ok() {
-                for (p, s) in power.iter_mut().zip(&spectrum) {
-                    *p += s.norm_sqr();
-                }
-            }
-        }
-        power
-            .iter()
-            .enumerate()
-            .map(|(k, p)| {
-                (
-                    k as f64 * self.fs_hz / n as f64,
-                    10.0 * p.max(1e-300).log10(),
-                )
-            })
-            .collect()
-    }
-}
 
 /// How [`identify`] works.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -177,6 +96,9 @@ pub struct Mode {
     pub mpc: f64,
     /// Orders at which the mode was stable.
     pub n_stable: usize,
+    /// Modal signal-to-noise ratio, dB: the mode's energy on all channels over the noise
+    /// energy a free exponential absorbs from noise alone (see [`shapes::ResidueFit`]).
+    pub modal_snr_db: f64,
     /// Complex shape per channel, largest component 1 + 0j.
     #[serde(skip)]
     pub shape: Vec<c64>,
@@ -356,68 +278,13 @@ pub fn identify(rec: &Recordings, settings: &ModalSettings) -> Result<ModalResul
         names: rec.names.clone(),
     };
     for sub in plan_subbands(settings.fmin_hz, settings.fmax_hz, &settings.subbands) {
-        let guard = sub.guard_hz;
         let band = to_baseband(&rec.channels, rec.fs_hz, &sub, start);
-        let compressed = compress(band.data.as_ref(), plan.compressed_channels);
-        let Some(by_order) = compressed.as_ref().and_then(|y| {
-            poles_by_order(
-                &band,
-                y.as_ref(),
-                &plan,
-                settings.min_order..=settings.max_order,
-            )
-        }) else {
-            result.skipped.push(SkippedBand {
-                band: sub,
-                reason: format!(
-                    "{} decimated samples are too few for {} block rows, or a factorisation failed",
-                    band.data.ncols(),
-                    plan.block_rows
-                ),
-            });
-            continue;
-        };
-        // Modes are selected over the whole analysed range (their exponentials all enter the
-        // residue fit) and kept where the sub-band accepts them.
-        let (lo, hi) = (sub.lo_hz - guard, sub.hi_hz + guard);
-        let classes = classify(&by_order, lo, hi, &settings.stability);
-        for (poles, class) in by_order.iter().zip(&classes) {
-            for (p, k) in poles.iter().zip(class) {
-                if p.f_hz >= sub.lo_hz && p.f_hz < sub.hi_hz {
-                    result.diagram.push(DiagramPole {
-                        order: p.order,
-                        f_hz: p.f_hz,
-                        damping_ratio: p.damping_ratio,
-                        class: *k,
-                    });
-                }
+        match band::identify_band(&band, &sub, &plan, settings) {
+            Ok((modes, diagram)) => {
+                result.modes.extend(modes);
+                result.diagram.extend(diagram);
             }
-        }
-        let clusters = select_modes(&by_order, &classes, &settings.stability);
-        let z0: Vec<c64> = clusters.iter().map(|c| c.representative().z).collect();
-        let z = match &compressed {
-            Some(y) if !z0.is_empty() => refine::refine_poles(y.as_ref(), &z0),
-            _ => z0,
-        };
-        let residues = shapes::residues(band.data.as_ref(), &z);
-        for (r, cl) in clusters.iter().enumerate() {
-            let (f, d) = band.frequency_and_damping(z[r]);
-            if !(f >= sub.lo_hz && f < sub.hi_hz && d > 0.0) {
-                continue;
-            }
-            let shape = residues
-                .as_ref()
-                .map(|a| shapes::normalised(&(0..a.ncols()).map(|c| a[(r, c)]).collect::<Vec<_>>()))
-                .unwrap_or_default();
-            result.modes.push(Mode {
-                frequency_hz: f,
-                damping_ratio: d,
-                frequency_std_hz: cl.std(|p| p.f_hz),
-                damping_std: cl.std(|p| p.damping_ratio),
-                mpc: shapes::mpc(&shape),
-                n_stable: cl.poles.len(),
-                shape,
-            });
+            Err(reason) => result.skipped.push(SkippedBand { band: sub, reason }),
         }
     }
     result

@@ -60,8 +60,23 @@ fn solve(a: &[Vec<f64>], b: &[f64]) -> Option<Vec<f64>> {
     x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
-/// The poles `z0` moved to the least-squares optimum of the fit of `y` (channels × samples);
-/// `z0` itself when the refinement cannot improve it.
+/// How far a pole may move, in units of its own decay rate |Re ln z| (its half-power
+/// half-bandwidth): a pole of damping D at f may move by ±D·f in frequency and to between 0 and
+/// twice its damping. Within that, the subspace estimate is refined; beyond it the fit would be
+/// chasing something else (an attenuated mode at the filter's edge, a neighbour's residual).
+pub const TRUST_RADIUS_DECAY_RATES: f64 = 1.0;
+
+/// Whether every pole of `params` stays within the trust radius of its start `start`.
+fn within_trust(params: &[f64], start: &[f64]) -> bool {
+    params.chunks(2).zip(start.chunks(2)).all(|(p, s)| {
+        let r = TRUST_RADIUS_DECAY_RATES * s[0].abs();
+        (p[0] - s[0]).hypot(p[1] - s[1]) <= r
+    })
+}
+
+/// The poles `z0` moved to the least-squares optimum of the fit of `y` (channels × samples)
+/// within each pole's trust radius ([`TRUST_RADIUS_DECAY_RATES`]); `z0` itself when the
+/// refinement cannot improve it.
 pub fn refine_poles(y: MatRef<'_, c64>, z0: &[c64]) -> Vec<c64> {
     let mut params: Vec<f64> = z0
         .iter()
@@ -70,6 +85,7 @@ pub fn refine_poles(y: MatRef<'_, c64>, z0: &[c64]) -> Vec<c64> {
             [l.re, l.im]
         })
         .collect();
+    let start = params.clone();
     let Some(mut r) = residual(y, &poles(&params)) else {
         return z0.to_vec();
     };
@@ -109,6 +125,10 @@ pub fn refine_poles(y: MatRef<'_, c64>, z0: &[c64]) -> Vec<c64> {
                 continue;
             };
             let trial: Vec<f64> = params.iter().zip(&step).map(|(p, s)| p + s).collect();
+            if !within_trust(&trial, &start) {
+                mu *= 4.0;
+                continue;
+            }
             match residual(y, &poles(&trial)) {
                 Some(rt) if cost(&rt) < c => {
                     let rel = (c - cost(&rt)) / c;

@@ -27,6 +27,53 @@ pub fn residues(data: MatRef<'_, c64>, z: &[c64]) -> Option<Mat<c64>> {
     finite.then_some(a)
 }
 
+/// A residue fit on all channels with its noise level and each mode's share of the signal.
+pub struct ResidueFit {
+    /// Complex residues, modes × channels.
+    pub residues: Mat<c64>,
+    /// Variance of the fit's residual per complex sample and channel.
+    pub noise_variance: f64,
+    /// Each mode's modal signal-to-noise ratio, dB: its energy over all channels and samples
+    /// divided by the noise energy one free exponential per channel would absorb from noise
+    /// alone (channels × `noise_variance`). A pole fitted to noise sits near 0 dB.
+    pub modal_snr_db: Vec<f64>,
+}
+
+/// [`residues`] with the residual's variance and each mode's modal SNR.
+pub fn fit_residues(data: MatRef<'_, c64>, z: &[c64]) -> Option<ResidueFit> {
+    let a = residues(data, z)?;
+    let (m, n) = (data.nrows(), data.ncols());
+    let mut sum = 0.0;
+    let mut powers = vec![c64::new(1.0, 0.0); z.len()];
+    let mut energy_per_unit = vec![0.0; z.len()];
+    for t in 0..n {
+        for c in 0..m {
+            let mut fit = c64::new(0.0, 0.0);
+            for (r, p) in powers.iter().enumerate() {
+                fit += a[(r, c)] * p;
+            }
+            sum += (data[(c, t)] - fit).norm_sqr();
+        }
+        for ((p, zr), e) in powers.iter_mut().zip(z).zip(&mut energy_per_unit) {
+            *e += p.norm_sqr();
+            *p *= zr;
+        }
+    }
+    let dof = (m * n).saturating_sub(m * z.len()).max(1) as f64;
+    let noise_variance = sum / dof;
+    let modal_snr_db = (0..z.len())
+        .map(|r| {
+            let amp: f64 = (0..m).map(|c| a[(r, c)].norm_sqr()).sum();
+            10.0 * (amp * energy_per_unit[r] / (m as f64 * noise_variance).max(1e-300)).log10()
+        })
+        .collect();
+    Some(ResidueFit {
+        residues: a,
+        noise_variance,
+        modal_snr_db,
+    })
+}
+
 /// The shape scaled so that its largest component is 1 + 0j.
 pub fn normalised(shape: &[c64]) -> Vec<c64> {
     let big = shape
