@@ -98,7 +98,7 @@ pub fn identify_band(
             f >= sub.lo_hz && f < sub.hi_hz
         })
         .collect();
-    candidates.sort_by(|a, b| b.poles.len().cmp(&a.poles.len()));
+    candidates.sort_by_key(|c| std::cmp::Reverse(c.poles.len()));
     for cand in candidates.into_iter().take(MAX_CANDIDATES) {
         if !fitter.worth_refining(&model, &cand) {
             continue;

@@ -150,7 +150,7 @@ pub fn classify(
 /// test at one order starts a new cluster at the next. Two clusters are one mode when they
 /// never hold a pole of the same order and their median poles match in frequency and shape.
 fn merge_fragments(mut clusters: Vec<Cluster>, c: &StabilityCriteria) -> Vec<Cluster> {
-    clusters.sort_by(|a, b| b.poles.len().cmp(&a.poles.len()));
+    clusters.sort_by_key(|c| std::cmp::Reverse(c.poles.len()));
     let mut merged: Vec<Cluster> = Vec::new();
     for cl in clusters {
         let f = cl.median(|p| p.f_hz);
