@@ -86,3 +86,78 @@ fn out_dir_is_a_readable_recording_set() {
     assert!(Cli::try_parse_from(["simulate"]).is_err());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `--snr-definition mean-power`: one σ for all channels, σ² = mean channel power / 10^(snr/10),
+/// and exactly the noise `Recordings::add_noise_mean_power` draws for the same seed (so that
+/// `simulate` and `modal --add-noise-db` make the same test data). The peak definition gives
+/// each channel its own σ from its peak.
+#[test]
+fn mean_power_snr_sets_one_noise_level_from_the_mean_power() {
+    use dampscope::modal::Recordings;
+    let dir = std::env::temp_dir().join(format!("dampscope-sim-snr-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model_path = dir.join("plate.toml");
+    std::fs::write(&model_path, MODEL).unwrap();
+    let read = |name: &str, extra: &[&str]| -> Recordings {
+        let out = dir.join(name);
+        let mut argv = vec![
+            "simulate",
+            "--model",
+            model_path.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--keep-modes",
+            "2,3",
+        ];
+        argv.extend_from_slice(extra);
+        run(&Cli::try_parse_from(argv).unwrap().args).unwrap();
+        let mut set = open_recording_set(&out).unwrap();
+        Recordings::from_source(set.source.as_mut(), usize::MAX).unwrap()
+    };
+    let clean = read("clean", &[]);
+    let noisy = read(
+        "mean",
+        &["--snr-db", "20", "--snr-definition", "mean-power", "--seed", "7"],
+    );
+    let peak = read("peak", &["--snr-db", "20", "--seed", "7"]);
+    let n = clean.channels[0].len() as f64;
+    let power: f64 = clean
+        .channels
+        .iter()
+        .map(|x| x.iter().map(|v| v * v).sum::<f64>() / n)
+        .sum::<f64>()
+        / clean.channels.len() as f64;
+    let want_var = power / 100.0;
+    let mut all = 0.0;
+    for (c, (x, y)) in clean.channels.iter().zip(&noisy.channels).enumerate() {
+        let var = x.iter().zip(y).map(|(a, b)| (b - a).powi(2)).sum::<f64>() / n;
+        all += var;
+        // Each channel's own noise variance (a few thousand samples: ±10 %).
+        assert!(
+            (var / want_var - 1.0).abs() < 0.1,
+            "channel {c}: noise variance {var:.3e}, want {want_var:.3e}"
+        );
+    }
+    let mean_var = all / clean.channels.len() as f64;
+    assert!((mean_var / want_var - 1.0).abs() < 0.03, "{mean_var} vs {want_var}");
+    // The same noise as the library's own noise model (WAV float32 rounding aside).
+    let mut again = clean.clone();
+    again.add_noise_mean_power(20.0, 7);
+    for (x, y) in again.channels.iter().zip(&noisy.channels) {
+        for (a, b) in x.iter().zip(y) {
+            assert!((a - b).abs() <= 1e-6 * a.abs().max(want_var.sqrt()), "{a} vs {b}");
+        }
+    }
+    // The peak definition gives each channel its own σ = max|h| · 10^(−snr/20) instead.
+    for (c, (x, y)) in clean.channels.iter().zip(&peak.channels).enumerate() {
+        let var = x.iter().zip(y).map(|(a, b)| (b - a).powi(2)).sum::<f64>() / n;
+        let peak_amp = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let want = peak_amp * peak_amp / 100.0;
+        // (Sensors on the pinned edges do not move: no peak, no noise.)
+        assert!(
+            (want == 0.0 && var == 0.0) || (var / want - 1.0).abs() < 0.1,
+            "channel {c}: peak-SNR noise variance {var:.3e}, want {want:.3e}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -6,6 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
+use crate::modal::Recordings;
 use crate::sim::model::Model;
 use crate::sim::simulate::{simulate_stream, Method, SimulateOptions, STREAM_BLOCK_FRAMES};
 use crate::sim::system::SensorWeights;
@@ -21,6 +22,15 @@ pub enum MethodArg {
     Direct,
     /// Modal projection with residual vectors and exact regional damping.
     Fast,
+}
+
+/// How `simulate --snr-db` is defined.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SnrDefinition {
+    /// Per channel, on the channel's peak amplitude.
+    Peak,
+    /// On the mean over channels of the signal power over the record.
+    MeanPower,
 }
 
 /// Arguments of `dampscope simulate`.
@@ -55,9 +65,15 @@ pub struct SimulateArgs {
         requires = "keep_modes"
     )]
     pub modal_damping: Option<Vec<f64>>,
-    /// Add white Gaussian noise at this peak SNR per channel, dB.
+    /// Add white Gaussian noise at this SNR, dB (defined by --snr-definition).
     #[arg(long = "snr-db", value_name = "DB")]
     pub snr_db: Option<f64>,
+    /// How --snr-db is defined: `peak` (per channel: σ = max|h| · 10^(−snr/20), kind to decays)
+    /// or `mean-power` (one σ for all channels: the mean over channels of each channel's
+    /// power over the record, over 10^(snr/10); what a lab's noise floor looks like, and the
+    /// same noise as `dampscope modal --add-noise-db` draws for the same seed).
+    #[arg(long, value_enum, default_value_t = SnrDefinition::Peak)]
+    pub snr_definition: SnrDefinition,
     /// Seed of the noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -77,7 +93,7 @@ impl SimulateArgs {
         SimulateOptions {
             method,
             modal_damping_ratios: self.modal_damping.clone(),
-            snr_db: self.snr_db,
+            snr_db: self.snr_db.filter(|_| self.snr_definition == SnrDefinition::Peak),
             seed: self.seed,
             progress: true,
             ..SimulateOptions::default()
@@ -151,17 +167,31 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         );
     }
     let fs = r.fs_hz;
+    // Noise on mean power needs the whole record's power first: the (small) simulated set is
+    // held in memory for it.
+    let mut source: Box<dyn Source> = match (args.snr_db, args.snr_definition) {
+        (Some(snr), SnrDefinition::MeanPower) => {
+            if !snr.is_finite() {
+                bail!("--snr-db: expected a finite dB value, got {snr}");
+            }
+            let mut rec = Recordings::from_source(&mut r.source, usize::MAX)
+                .context("reading the simulated responses")?;
+            rec.add_noise_mean_power(snr, args.seed);
+            Box::new(rec.into_source()?)
+        }
+        _ => Box::new(r.source),
+    };
     if fs.fract() != 0.0 || fs > f64::from(u32::MAX) {
         bail!("a WAV header needs a whole number of Hz: fs = 2·fmax = {fs}");
     }
     if args.stdout {
         let stdout = io::stdout();
         let mut w = BufWriter::new(stdout.lock());
-        let frames = r.source.duration_frames().unwrap_or(0);
+        let frames = source.duration_frames().unwrap_or(0);
         let mut out = WavStreamWriter::new(&mut w, fs as u32, r.sensors.len(), frames)
             .context("writing the WAV header to standard output")?;
         let mut block = Block::default();
-        while r.source.read_block(STREAM_BLOCK_FRAMES, &mut block)? {
+        while source.read_block(STREAM_BLOCK_FRAMES, &mut block)? {
             out.write_block(&block)
                 .context("writing the WAV to standard output")?;
         }
@@ -178,7 +208,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         &meta(fs, args.snr_db),
         &sensors,
         &excitation,
-        &mut r.source,
+        source.as_mut(),
         STREAM_BLOCK_FRAMES,
     )
     .with_context(|| format!("writing the recording set {}", dir.display()))?;

@@ -52,6 +52,17 @@ impl Recordings {
         }
     }
 
+    /// The recordings as a source (to write them, or to analyse them like any input).
+    pub fn into_source(self) -> Result<crate::source::memory::MemorySource, crate::source::SourceError> {
+        crate::source::memory::MemorySource::new(
+            crate::source::SignalInfo {
+                sample_rate_hz: self.fs_hz,
+                channel_names: self.names,
+            },
+            self.channels,
+        )
+    }
+
     /// The channels' summed power spectrum, (f in Hz, dB), for the stabilisation diagram's
     /// background.
     pub fn mean_power_spectrum_db(&self) -> Vec<(f64, f64)> {
