@@ -117,7 +117,14 @@ fn mean_power_snr_sets_one_noise_level_from_the_mean_power() {
     let clean = read("clean", &[]);
     let noisy = read(
         "mean",
-        &["--snr-db", "20", "--snr-definition", "mean-power", "--seed", "7"],
+        &[
+            "--snr-db",
+            "20",
+            "--snr-definition",
+            "mean-power",
+            "--seed",
+            "7",
+        ],
     );
     let peak = read("peak", &["--snr-db", "20", "--seed", "7"]);
     let n = clean.channels[0].len() as f64;
@@ -139,13 +146,19 @@ fn mean_power_snr_sets_one_noise_level_from_the_mean_power() {
         );
     }
     let mean_var = all / clean.channels.len() as f64;
-    assert!((mean_var / want_var - 1.0).abs() < 0.03, "{mean_var} vs {want_var}");
+    assert!(
+        (mean_var / want_var - 1.0).abs() < 0.03,
+        "{mean_var} vs {want_var}"
+    );
     // The same noise as the library's own noise model (WAV float32 rounding aside).
     let mut again = clean.clone();
     again.add_noise_mean_power(20.0, 7);
     for (x, y) in again.channels.iter().zip(&noisy.channels) {
         for (a, b) in x.iter().zip(y) {
-            assert!((a - b).abs() <= 1e-6 * a.abs().max(want_var.sqrt()), "{a} vs {b}");
+            assert!(
+                (a - b).abs() <= 1e-6 * a.abs().max(want_var.sqrt()),
+                "{a} vs {b}"
+            );
         }
     }
     // The peak definition gives each channel its own σ = max|h| · 10^(−snr/20) instead.

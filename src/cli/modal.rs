@@ -7,7 +7,9 @@ use std::time::Instant;
 use anyhow::Context;
 
 use super::bands_arg::InputFormatArgs;
+use crate::modal::model_shapes::{match_model, model_modes_at, ModelMatch, MODEL_FMAX_FACTOR};
 use crate::modal::{identify, ModalResult, ModalSettings, Recordings};
+use crate::sim::model::SensorPosition;
 use crate::source::stdin::open_input;
 
 /// Most samples per channel `modal` reads (the identification holds the whole record).
@@ -48,6 +50,11 @@ pub struct ModalArgs {
     /// Seed of --add-noise-db.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Plate model (TOML) whose mode shapes, read at the recording set's sensor positions, are
+    /// paired with the identified ones by MAC (columns model_mode, model_frequency_hz,
+    /// mac_model of modes.csv).
+    #[arg(long, value_name = "PATH")]
+    pub model: Option<PathBuf>,
     /// Print read / identify / write times on stderr.
     #[arg(long)]
     pub timings: bool,
@@ -62,6 +69,10 @@ struct ModeRow {
     damping_std: f64,
     mpc: f64,
     n_stable: usize,
+    modal_snr_db: f64,
+    model_mode: Option<usize>,
+    model_frequency_hz: Option<f64>,
+    mac_model: Option<f64>,
 }
 
 #[derive(serde::Serialize)]
@@ -76,17 +87,13 @@ struct ShapeRow<'a> {
     phase_deg: f64,
 }
 
-fn write_outputs(
-    args: &ModalArgs,
-    rec: &Recordings,
-    result: &ModalResult,
-    positions: Option<&[(f64, f64)]>,
-) -> anyhow::Result<()> {
-    let dir = &args.out;
-    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    super::write_csv(
-        &dir.join("modes.csv"),
-        result.modes.iter().enumerate().map(|(k, m)| ModeRow {
+fn mode_rows<'a>(
+    result: &'a ModalResult,
+    matches: &'a [Option<ModelMatch>],
+) -> impl Iterator<Item = ModeRow> + 'a {
+    result.modes.iter().enumerate().map(|(k, m)| {
+        let hit = matches.get(k).copied().flatten();
+        ModeRow {
             mode: k + 1,
             frequency_hz: m.frequency_hz,
             damping_ratio: m.damping_ratio,
@@ -94,8 +101,24 @@ fn write_outputs(
             damping_std: m.damping_std,
             mpc: m.mpc,
             n_stable: m.n_stable,
-        }),
-    )?;
+            modal_snr_db: m.modal_snr_db,
+            model_mode: hit.map(|h| h.model_mode),
+            model_frequency_hz: hit.map(|h| h.model_frequency_hz),
+            mac_model: hit.map(|h| h.mac),
+        }
+    })
+}
+
+fn write_outputs(
+    args: &ModalArgs,
+    rec: &Recordings,
+    result: &ModalResult,
+    matches: &[Option<ModelMatch>],
+    positions: Option<&[(f64, f64)]>,
+) -> anyhow::Result<()> {
+    let dir = &args.out;
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    super::write_csv(&dir.join("modes.csv"), mode_rows(result, matches))?;
     let mut rows = Vec::new();
     for (k, m) in result.modes.iter().enumerate() {
         for (c, v) in m.shape.iter().enumerate() {
@@ -121,9 +144,20 @@ fn write_outputs(
     if let Some(p) = positions {
         for (k, m) in result.modes.iter().enumerate() {
             let re: Vec<f64> = m.shape.iter().map(|v| v.re).collect();
+            let versus_model = matches
+                .get(k)
+                .copied()
+                .flatten()
+                .map(|h| {
+                    format!(
+                        ", MAC {:.3} with model mode {} ({:.2} Hz)",
+                        h.mac, h.model_mode, h.model_frequency_hz
+                    )
+                })
+                .unwrap_or_default();
             crate::plot::mode_shape(
                 &format!(
-                    "mode {}: {:.2} Hz, D = {:.2} %, MPC {:.2}",
+                    "mode {}: {:.2} Hz, D = {:.2} %, MPC {:.2}{versus_model}",
                     k + 1,
                     m.frequency_hz,
                     100.0 * m.damping_ratio,
@@ -170,20 +204,36 @@ pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
             s.band.lo_hz, s.band.hi_hz, s.reason
         );
     }
-    println!("mode,frequency_hz,damping_ratio,frequency_std_hz,damping_std,mpc,n_stable");
-    for (k, m) in result.modes.iter().enumerate() {
-        println!(
-            "{},{:.4},{:.6},{:.4},{:.6},{:.3},{}",
-            k + 1,
-            m.frequency_hz,
-            m.damping_ratio,
-            m.frequency_std_hz,
-            m.damping_std,
-            m.mpc,
-            m.n_stable
-        );
+    let matches = match &args.model {
+        Some(path) => {
+            let Some(sensors) = &opened.sensors else {
+                anyhow::bail!(
+                    "--model needs the sensors' positions: give a recording set (sensors.csv) as INPUT"
+                );
+            };
+            let model = crate::sim::model::Model::load(path)
+                .with_context(|| format!("model {}", path.display()))?;
+            let positions: Vec<SensorPosition> = sensors
+                .iter()
+                .map(|s| SensorPosition {
+                    id: s.id.clone(),
+                    x_m: s.x_m,
+                    y_m: s.y_m,
+                })
+                .collect();
+            let model_modes = model_modes_at(&model, &positions, MODEL_FMAX_FACTOR * args.fmax)
+                .with_context(|| format!("modes of the model {}", path.display()))?;
+            match_model(&result.modes, &model_modes)
+        }
+        None => Vec::new(),
+    };
+    let mut out = csv::Writer::from_writer(std::io::stdout().lock());
+    for row in mode_rows(&result, &matches) {
+        out.serialize(row)?;
     }
-    write_outputs(args, &rec, &result, positions.as_deref())?;
+    out.flush()?;
+    drop(out);
+    write_outputs(args, &rec, &result, &matches, positions.as_deref())?;
     if args.timings {
         eprintln!(
             "timings: read {:.2} s, identify {:.2} s ({} channels × {} samples), write {:.2} s",

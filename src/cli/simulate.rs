@@ -93,7 +93,9 @@ impl SimulateArgs {
         SimulateOptions {
             method,
             modal_damping_ratios: self.modal_damping.clone(),
-            snr_db: self.snr_db.filter(|_| self.snr_definition == SnrDefinition::Peak),
+            snr_db: self
+                .snr_db
+                .filter(|_| self.snr_definition == SnrDefinition::Peak),
             seed: self.seed,
             progress: true,
             ..SimulateOptions::default()

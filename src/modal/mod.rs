@@ -14,6 +14,7 @@
 
 pub mod band;
 pub mod baseband;
+pub mod model_shapes;
 pub mod recordings;
 pub mod refine;
 pub mod shapes;

@@ -53,7 +53,9 @@ impl Recordings {
     }
 
     /// The recordings as a source (to write them, or to analyse them like any input).
-    pub fn into_source(self) -> Result<crate::source::memory::MemorySource, crate::source::SourceError> {
+    pub fn into_source(
+        self,
+    ) -> Result<crate::source::memory::MemorySource, crate::source::SourceError> {
         crate::source::memory::MemorySource::new(
             crate::source::SignalInfo {
                 sample_rate_hz: self.fs_hz,

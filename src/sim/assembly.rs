@@ -138,6 +138,27 @@ fn point_dofs(mesh: &Mesh, map: &DofMap, x_m: f64, y_m: f64, c: usize) -> Vec<(u
         .collect()
 }
 
+/// The out-of-plane weights of sensors at arbitrary `positions` (between nodes too: bilinear
+/// on the mid-plane), over the free dofs of `model` as [`assemble`] numbers them; e.g. to read
+/// the model's mode shapes where a recording set's sensors were.
+pub fn sensors_at(
+    model: &Model,
+    positions: &[crate::sim::model::SensorPosition],
+) -> Result<Vec<SensorWeights>, SimError> {
+    model.validate()?;
+    let mesh = Mesh::new(model);
+    let map = DofMap::new(model, &mesh)?;
+    Ok(positions
+        .iter()
+        .map(|s| SensorWeights {
+            weights: point_dofs(&mesh, &map, s.x_m, s.y_m, 2),
+            id: s.id.clone(),
+            x_m: s.x_m,
+            y_m: s.y_m,
+        })
+        .collect())
+}
+
 /// Assembles the model into an [`FeSystem`] over the free dofs ([`Formulation::InternalDofs`]).
 pub fn assemble(model: &Model) -> Result<FeSystem, SimError> {
     assemble_with(model, Formulation::default())
