@@ -24,6 +24,8 @@ const MAX_CANDIDATES: usize = 6;
 /// modal SNR reaches this, dB. Poles fitted to noise reach 6–8.4 dB after selection
 /// (99 channels at 35 dB, 8 seeds), the weakest true mode 11.5 dB.
 const CANDIDATE_MIN_SNR_DB: f64 = 12.0;
+/// Sensor groups of the jackknife uncertainty (channel c belongs to group c mod G).
+pub const JACKKNIFE_GROUPS: usize = 4;
 /// A candidate's refined damping ratio stays within this fraction of its cluster's median.
 const CANDIDATE_DAMPING_REL: f64 = 0.5;
 /// A candidate's shape has a MAC below this with every other mode of the band (a split of one
@@ -110,10 +112,29 @@ pub fn identify_band(
             model = trial;
         }
     }
-    let modes = model
-        .modes
+    let in_band: Vec<usize> = (0..model.modes.len())
+        .filter(|&i| {
+            let f = model.modes[i].frequency_hz;
+            f >= sub.lo_hz && f < sub.hi_hz
+        })
+        .collect();
+    let spread = if in_band.is_empty() {
+        Vec::new()
+    } else {
+        fitter.sensor_jackknife(&model, settings.compressed_channels)
+    };
+    let modes = in_band
         .into_iter()
-        .filter(|m| m.frequency_hz >= sub.lo_hz && m.frequency_hz < sub.hi_hz)
+        .map(|i| {
+            let mut m = model.modes[i].clone();
+            if let Some(&(f_std, d_std)) = spread.get(i) {
+                m.frequency_sensor_std_hz = f_std;
+                m.damping_sensor_std = d_std;
+            }
+            m.frequency_std_hz = m.frequency_order_std_hz.hypot(m.frequency_sensor_std_hz);
+            m.damping_std = m.damping_order_std.hypot(m.damping_sensor_std);
+            m
+        })
         .collect();
     Ok((modes, diagram))
 }
@@ -212,6 +233,48 @@ impl Fitter<'_> {
                 .all(|m| mac(&m.shape, &new.shape) < CANDIDATE_MAX_MAC)
     }
 
+    /// Delete-a-group jackknife over sensor groups: the model's poles refitted with every
+    /// [`JACKKNIFE_GROUPS`]-th channel left out in turn; the spread of f and D over the refits,
+    /// scaled by (G − 1)/G, estimates what the noise at the sensors does to each mode (per mode
+    /// of `model`, Hz and damping ratio; 0 with fewer than two channels).
+    fn sensor_jackknife(&self, model: &Model, compressed_channels: usize) -> Vec<(f64, f64)> {
+        let channels = self.band.data.nrows();
+        let groups = JACKKNIFE_GROUPS.min(channels);
+        if groups < 2 || model.z.is_empty() {
+            return vec![(0.0, 0.0); model.z.len()];
+        }
+        let mut estimates: Vec<Vec<(f64, f64)>> = Vec::with_capacity(groups);
+        for g in 0..groups {
+            let kept: Vec<usize> = (0..channels).filter(|c| c % groups != g).collect();
+            let data = faer::Mat::<c64>::from_fn(kept.len(), self.band.data.ncols(), |r, t| {
+                self.band.data[(kept[r], t)]
+            });
+            let Some(y) = compress(data.as_ref(), compressed_channels) else {
+                continue;
+            };
+            let z = refine::refine_poles(y.as_ref(), &model.z);
+            estimates.push(
+                z.iter()
+                    .map(|&p| self.band.frequency_and_damping(p))
+                    .collect(),
+            );
+        }
+        let n = estimates.len() as f64;
+        (0..model.z.len())
+            .map(|r| {
+                if estimates.len() < 2 {
+                    return (0.0, 0.0);
+                }
+                let spread = |pick: fn(&(f64, f64)) -> f64| {
+                    let mean = estimates.iter().map(|e| pick(&e[r])).sum::<f64>() / n;
+                    let ss: f64 = estimates.iter().map(|e| (pick(&e[r]) - mean).powi(2)).sum();
+                    ((n - 1.0) / n * ss).sqrt()
+                };
+                (spread(|e| e.0), spread(|e| e.1))
+            })
+            .collect()
+    }
+
     /// Fits `clusters`, drops what is no mode, refits, until every mode is valid.
     fn settle(&self, mut clusters: Vec<Cluster>) -> Model {
         for _ in 0..MAX_REFITS {
@@ -248,11 +311,16 @@ fn mode_of(
             shapes::normalised(&(0..a.ncols()).map(|c| a[(r, c)]).collect::<Vec<_>>())
         })
         .unwrap_or_default();
+    let (f_order, d_order) = (cl.std(|p| p.f_hz), cl.std(|p| p.damping_ratio));
     Mode {
         frequency_hz,
         damping_ratio,
-        frequency_std_hz: cl.std(|p| p.f_hz),
-        damping_std: cl.std(|p| p.damping_ratio),
+        frequency_std_hz: f_order,
+        damping_std: d_order,
+        frequency_order_std_hz: f_order,
+        damping_order_std: d_order,
+        frequency_sensor_std_hz: 0.0,
+        damping_sensor_std: 0.0,
         mpc: shapes::mpc(&shape),
         n_stable: cl.poles.len(),
         modal_snr_db: fit.map_or(f64::NAN, |f| f.modal_snr_db[r]),

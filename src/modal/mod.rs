@@ -89,10 +89,20 @@ pub struct Mode {
     pub frequency_hz: f64,
     /// Damping ratio (median over the stable orders).
     pub damping_ratio: f64,
-    /// Standard deviation of the frequency over the stable orders, Hz.
+    /// Standard uncertainty of the frequency, Hz: the spread over the stable orders and the
+    /// sensor jackknife combined (root sum of squares).
     pub frequency_std_hz: f64,
-    /// Standard deviation of the damping ratio over the stable orders.
+    /// Standard uncertainty of the damping ratio, combined like `frequency_std_hz`.
     pub damping_std: f64,
+    /// Standard deviation of the frequency over the stable orders, Hz.
+    pub frequency_order_std_hz: f64,
+    /// Standard deviation of the damping ratio over the stable orders.
+    pub damping_order_std: f64,
+    /// Jackknife standard error of the frequency over sensor groups, Hz
+    /// ([`band::JACKKNIFE_GROUPS`] groups, each left out in turn).
+    pub frequency_sensor_std_hz: f64,
+    /// Jackknife standard error of the damping ratio over sensor groups.
+    pub damping_sensor_std: f64,
     /// Modal phase collinearity of the shape (1: a real normal mode).
     pub mpc: f64,
     /// Orders at which the mode was stable.
