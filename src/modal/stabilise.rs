@@ -22,9 +22,14 @@ pub struct StabilityCriteria {
     /// A cluster is a mode when it holds stable poles from at least this fraction of the
     /// orders swept (0.2).
     pub min_stable_fraction: f64,
-    /// A mode whose shape's MPC is below `min(mpc_max_threshold, noise_mpc_scale / channels)`
-    /// is a pole fitted to noise (0.5).
+    /// A mode whose shape's MPC is below [`NOISE_MPC_SCALE`]` / channels`, clamped to
+    /// `mpc_min_threshold..=mpc_max_threshold`, is no mode: a pole fitted to noise or a spare
+    /// pole beside a close pair (0.5).
     pub mpc_max_threshold: f64,
+    /// Lower clamp of the MPC threshold (0.3): with many channels the noise quantile alone
+    /// (0.14 for 99) let through a persistent spare pole of MPC 0.16 beside the 57 Hz pair of a
+    /// Rayleigh-damped plate, whose true modes all have MPC > 0.95.
+    pub mpc_min_threshold: f64,
 }
 
 /// The MPC of a shape of independent complex Gaussian components over `n` channels is
@@ -36,7 +41,9 @@ pub const NOISE_MPC_SCALE: f64 = 13.8;
 impl StabilityCriteria {
     /// The MPC below which a mode over `channels` channels is taken for noise.
     pub fn noise_mpc(&self, channels: usize) -> f64 {
-        (NOISE_MPC_SCALE / channels.max(1) as f64).min(self.mpc_max_threshold)
+        (NOISE_MPC_SCALE / channels.max(1) as f64)
+            .max(self.mpc_min_threshold)
+            .min(self.mpc_max_threshold)
     }
 }
 
@@ -49,6 +56,7 @@ impl Default for StabilityCriteria {
             damping_max: 0.2,
             min_stable_fraction: 0.2,
             mpc_max_threshold: 0.5,
+            mpc_min_threshold: 0.3,
         }
     }
 }
