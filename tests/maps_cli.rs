@@ -45,6 +45,7 @@ fn known_set(dir: &Path) -> (Vec<Sensor>, Vec<Option<f64>>) {
         }
     }
     let meta = RecordingMeta {
+        exponential_window_tau_s: None,
         kind: DecayKind::FreeDecay,
         ..Default::default()
     };

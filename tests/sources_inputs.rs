@@ -101,6 +101,7 @@ fn recording_set_round_trip_and_channel_check() {
         force_n: 2.5,
     }];
     let meta = RecordingMeta {
+        exponential_window_tau_s: None,
         kind: DecayKind::FreeDecay,
         quantity: Some("acceleration".into()),
         snr_db: Some(40.0),
@@ -116,6 +117,7 @@ fn recording_set_round_trip_and_channel_check() {
     assert_eq!(
         set.meta,
         RecordingMeta {
+            exponential_window_tau_s: None,
             fs: Some(2000.0),
             ..meta.clone()
         }

@@ -50,6 +50,11 @@ pub struct ModalArgs {
     /// Seed of --add-noise-db.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Time constant τ of an exponential window e^(−t/τ) already applied to the responses, s
+    /// (default: `exponential_window_tau_s` of the recording set's meta.json, if any); its
+    /// decay rate is subtracted from every pole.
+    #[arg(long, value_name = "S")]
+    pub exponential_window_s: Option<f64>,
     /// Plate model (TOML) whose mode shapes, read at the recording set's sensor positions, are
     /// paired with the identified ones by MAC (columns model_mode, model_frequency_hz,
     /// mac_model of modes.csv).
@@ -202,6 +207,10 @@ pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
         },
         max_order: args.max_order,
         start_s: args.start_s,
+        exponential_window_tau_s: args.exponential_window_s.or(opened
+            .meta
+            .as_ref()
+            .and_then(|m| m.exponential_window_tau_s)),
         ..ModalSettings::new(args.fmin, args.fmax)
     };
     let result = identify(&rec, &settings)?;

@@ -140,6 +140,7 @@ pub fn recording_parts(
 /// The `meta.json` of a simulated set.
 pub fn meta(fs_hz: f64, snr_db: Option<f64>) -> RecordingMeta {
     RecordingMeta {
+        exponential_window_tau_s: None,
         fs: Some(fs_hz),
         kind: DecayKind::ImpulseResponse,
         quantity: Some("acceleration".into()),

@@ -58,6 +58,29 @@ pub struct SubBandPlan {
     pub guard_fraction: f64,
 }
 
+/// Most of an analysed record the end cut of a sub-band may take.
+pub const MAX_END_CUT_FRACTION: f64 = 0.3;
+
+impl SubBandPlan {
+    /// The plan widened for a record of `record_s` seconds after the analysis start: a band's
+    /// filter needs [`END_CUT_TIME_CONSTANTS`] time constants cut from the end, which for a
+    /// narrow band can be most of a short record (0.76 s for 10 Hz bands, so a 1 s impact
+    /// record would lose every low band); no band is made so narrow that its cut exceeds
+    /// [`MAX_END_CUT_FRACTION`] of the record. Unchanged for records of 3 s and more.
+    pub fn fitted_to_record(&self, record_s: f64) -> SubBandPlan {
+        let cut_s = MAX_END_CUT_FRACTION * record_s.max(1e-9);
+        // end cut = k·order/(2π h), with the filter half-width h = (½ + guard)·width.
+        let min_half_width =
+            END_CUT_TIME_CONSTANTS * LOWPASS_ORDER as f64 / (2.0 * std::f64::consts::PI * cut_s);
+        let min_width = min_half_width / (0.5 + self.guard_fraction);
+        SubBandPlan {
+            min_width_hz: self.min_width_hz.max(min_width),
+            max_width_hz: self.max_width_hz.max(min_width),
+            ..*self
+        }
+    }
+}
+
 /// Splits `fmin_hz..fmax_hz` into consecutive sub-bands as `plan` says (the last one ends at
 /// `fmax_hz`; a remainder narrower than half the minimum width joins the band before it).
 pub fn plan_subbands(fmin_hz: f64, fmax_hz: f64, plan: &SubBandPlan) -> Vec<SubBand> {
@@ -92,13 +115,17 @@ pub struct Baseband {
     pub fs_hz: f64,
     /// Complex samples, channels × time.
     pub data: Mat<c64>,
+    /// Decay rate an exponential window added to every pole, 1/s (1/τ of a window e^(−t/τ));
+    /// subtracted from every pole's decay rate.
+    pub window_decay_per_s: f64,
 }
 
 impl Baseband {
     /// Frequency (Hz) and damping ratio of a pole `z` of the decimated baseband signal.
     pub fn frequency_and_damping(&self, z: c64) -> (f64, f64) {
         let two_pi = 2.0 * std::f64::consts::PI;
-        let lambda = z.ln() * self.fs_hz + c64::new(0.0, two_pi * self.center_hz);
+        let lambda =
+            z.ln() * self.fs_hz + c64::new(self.window_decay_per_s, two_pi * self.center_hz);
         (lambda.im / two_pi, -lambda.re / lambda.norm())
     }
 }
@@ -179,6 +206,7 @@ pub fn to_baseband(channels: &[Vec<f64>], fs_hz: f64, sub: &SubBand, start: usiz
         center_hz: center,
         fs_hz: fs_hz / factor as f64,
         data,
+        window_decay_per_s: 0.0,
     }
 }
 

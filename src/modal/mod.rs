@@ -62,6 +62,10 @@ pub struct ModalSettings {
     /// Analysis start, s after the record's start (`None`: the sample after the peak of the
     /// summed squared channels, i.e. after the impact).
     pub start_s: Option<f64>,
+    /// Time constant τ of an exponential window e^(−t/τ) applied to the recordings before
+    /// they reached dampscope (impact testing's force/response window), s: its decay rate 1/τ
+    /// is subtracted from every pole, which would otherwise read too much damping.
+    pub exponential_window_tau_s: Option<f64>,
     /// Stability and clustering criteria.
     pub stability: StabilityCriteria,
 }
@@ -77,6 +81,7 @@ impl ModalSettings {
             max_order: DEFAULT_MAX_ORDER,
             compressed_channels: DEFAULT_COMPRESSED_CHANNELS,
             start_s: None,
+            exponential_window_tau_s: None,
             stability: StabilityCriteria::default(),
         }
     }
@@ -251,6 +256,15 @@ fn validate(rec: &Recordings, s: &ModalSettings) -> Result<usize, ModalError> {
             format!("{}..{}", s.min_order, s.max_order),
         ));
     }
+    if let Some(t) = s.exponential_window_tau_s {
+        if !(t > 0.0 && t.is_finite()) {
+            return Err(setting(
+                "exponential window time constant",
+                "a finite τ > 0 s",
+                t.to_string(),
+            ));
+        }
+    }
     if s.compressed_channels == 0 {
         return Err(setting("compressed channels", "≥ 1", "0".into()));
     }
@@ -288,8 +302,11 @@ pub fn identify(rec: &Recordings, settings: &ModalSettings) -> Result<ModalResul
         skipped: Vec::new(),
         names: rec.names.clone(),
     };
-    for sub in plan_subbands(settings.fmin_hz, settings.fmax_hz, &settings.subbands) {
-        let band = to_baseband(&rec.channels, rec.fs_hz, &sub, start);
+    let record_s = (n - start) as f64 / rec.fs_hz;
+    let subbands = settings.subbands.fitted_to_record(record_s);
+    for sub in plan_subbands(settings.fmin_hz, settings.fmax_hz, &subbands) {
+        let mut band = to_baseband(&rec.channels, rec.fs_hz, &sub, start);
+        band.window_decay_per_s = settings.exponential_window_tau_s.map_or(0.0, |t| 1.0 / t);
         match band::identify_band(&band, &sub, &plan, settings) {
             Ok((modes, diagram)) => {
                 result.modes.extend(modes);

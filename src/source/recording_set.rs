@@ -72,6 +72,11 @@ pub struct RecordingMeta {
     /// Signal-to-noise ratio in dB, informative only.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub snr_db: Option<f64>,
+    /// Time constant τ of an exponential window e^(−t/τ) the acquisition applied to every
+    /// response, s (a dampscope extension of FORMATS.md §1: impact testing's response window).
+    /// `dampscope modal` subtracts its decay rate 1/τ from every pole.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub exponential_window_tau_s: Option<f64>,
     /// Physical units per count of an integer WAV (instead of scaling to [-1, 1)).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub scale: Option<f64>,
@@ -561,6 +566,7 @@ fn write_set(
         Ok(())
     })?;
     let meta = RecordingMeta {
+        exponential_window_tau_s: None,
         fs: Some(sample_rate_hz),
         ..meta.clone()
     };
