@@ -79,12 +79,15 @@ fn every_mode_below_80_hz_at_50_db() {
     }
 }
 
+/// (true f, f, D) of the pairs, true modes missed, identified modes left over.
+type Pairing = (Vec<(f64, f64, f64)>, Vec<f64>, Vec<f64>);
+
 /// Pairs every true mode with the nearest unused identified mode within 0.5 %: (true f, f, D)
 /// of the pairs, the true modes not found, and the identified modes left over (spurious).
 fn pair_up(
     want: &[f64],
     modes: &[dampscope::modal::Mode],
-) -> (Vec<(f64, f64, f64)>, Vec<f64>, Vec<f64>) {
+) -> Pairing {
     let mut used = vec![false; modes.len()];
     let (mut found, mut missing) = (Vec::new(), Vec::new());
     for &t in want {
