@@ -84,10 +84,7 @@ type Pairing = (Vec<(f64, f64, f64)>, Vec<f64>, Vec<f64>);
 
 /// Pairs every true mode with the nearest unused identified mode within 0.5 %: (true f, f, D)
 /// of the pairs, the true modes not found, and the identified modes left over (spurious).
-fn pair_up(
-    want: &[f64],
-    modes: &[dampscope::modal::Mode],
-) -> Pairing {
+fn pair_up(want: &[f64], modes: &[dampscope::modal::Mode]) -> Pairing {
     let mut used = vec![false; modes.len()];
     let (mut found, mut missing) = (Vec::new(), Vec::new());
     for &t in want {

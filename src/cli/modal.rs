@@ -8,7 +8,7 @@ use anyhow::Context;
 
 use super::bands_arg::InputFormatArgs;
 use crate::modal::model_shapes::{match_model, model_modes_at, ModelMatch, MODEL_FMAX_FACTOR};
-use crate::modal::{identify, ModalResult, ModalSettings, Recordings};
+use crate::modal::{identify_with_progress, ModalResult, ModalSettings, Recordings};
 use crate::sim::model::SensorPosition;
 use crate::source::stdin::open_input;
 
@@ -185,6 +185,20 @@ fn write_outputs(
     Ok(())
 }
 
+/// A sub-band progress bar on stderr, drawn only when stderr is a terminal.
+fn progress_bar() -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(0);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{elapsed:>4} [{bar:30}] sub-band {pos}/{len}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    bar
+}
+
 /// Runs `dampscope modal`.
 pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
@@ -213,7 +227,12 @@ pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
             .and_then(|m| m.exponential_window_tau_s)),
         ..ModalSettings::new(args.fmin, args.fmax)
     };
-    let result = identify(&rec, &settings)?;
+    let bar = progress_bar();
+    let result = identify_with_progress(&rec, &settings, &mut |done, total| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+    })?;
+    bar.finish_and_clear();
     let t_identify = t0.elapsed().as_secs_f64() - t_read;
     for s in &result.skipped {
         eprintln!(
@@ -244,21 +263,32 @@ pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
         }
         None => Vec::new(),
     };
-    let mut out = csv::Writer::from_writer(std::io::stdout().lock());
+    let t_model = t0.elapsed().as_secs_f64() - t_read - t_identify;
+    println!("mode,frequency_hz,damping_ratio,frequency_std_hz,damping_std,mpc,n_stable,modal_snr_db,mac_model");
     for row in mode_rows(&result, &matches) {
-        out.serialize(row)?;
+        println!(
+            "{},{:.4},{:.6},{:.4},{:.6},{:.3},{},{:.1},{}",
+            row.mode,
+            row.frequency_hz,
+            row.damping_ratio,
+            row.frequency_std_hz,
+            row.damping_std,
+            row.mpc,
+            row.n_stable,
+            row.modal_snr_db,
+            row.mac_model.map_or(String::new(), |m| format!("{m:.4}"))
+        );
     }
-    out.flush()?;
-    drop(out);
     write_outputs(args, &rec, &result, &matches, positions.as_deref())?;
     if args.timings {
         eprintln!(
-            "timings: read {:.2} s, identify {:.2} s ({} channels × {} samples), write {:.2} s",
+            "timings: read {:.2} s, identify {:.2} s ({} channels × {} samples), model {:.2} s, write {:.2} s",
             t_read,
             t_identify,
             rec.channels.len(),
             rec.channels.first().map_or(0, Vec::len),
-            t0.elapsed().as_secs_f64() - t_read - t_identify
+            t_model,
+            t0.elapsed().as_secs_f64() - t_read - t_identify - t_model
         );
     }
     Ok(())

@@ -289,6 +289,15 @@ fn start_index(rec: &Recordings, s: &ModalSettings, n: usize) -> usize {
 
 /// Identifies the modes of `rec` in `settings.fmin_hz..fmax_hz` from all channels at once.
 pub fn identify(rec: &Recordings, settings: &ModalSettings) -> Result<ModalResult, ModalError> {
+    identify_with_progress(rec, settings, &mut |_, _| {})
+}
+
+/// [`identify`], calling `progress(done, total)` after each sub-band (for a progress bar).
+pub fn identify_with_progress(
+    rec: &Recordings,
+    settings: &ModalSettings,
+    progress: &mut dyn FnMut(usize, usize),
+) -> Result<ModalResult, ModalError> {
     let n = validate(rec, settings)?;
     let start = start_index(rec, settings, n);
     let plan = HankelPlan::new(
@@ -304,7 +313,9 @@ pub fn identify(rec: &Recordings, settings: &ModalSettings) -> Result<ModalResul
     };
     let record_s = (n - start) as f64 / rec.fs_hz;
     let subbands = settings.subbands.fitted_to_record(record_s);
-    for sub in plan_subbands(settings.fmin_hz, settings.fmax_hz, &subbands) {
+    let plan_of_bands = plan_subbands(settings.fmin_hz, settings.fmax_hz, &subbands);
+    let total = plan_of_bands.len();
+    for (done, sub) in plan_of_bands.into_iter().enumerate() {
         let mut band = to_baseband(&rec.channels, rec.fs_hz, &sub, start);
         band.window_decay_per_s = settings.exponential_window_tau_s.map_or(0.0, |t| 1.0 / t);
         match band::identify_band(&band, &sub, &plan, settings) {
@@ -314,6 +325,7 @@ pub fn identify(rec: &Recordings, settings: &ModalSettings) -> Result<ModalResul
             }
             Err(reason) => result.skipped.push(SkippedBand { band: sub, reason }),
         }
+        progress(done + 1, total);
     }
     result
         .modes
