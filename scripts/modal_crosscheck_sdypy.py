@@ -1,7 +1,7 @@
 """Side-by-side check of `dampscope modal` against sdypy-EMA's LSCF on the same noisy recordings.
 
     pip install numpy scipy sdypy-EMA
-    cargo build --release
+    CARGO_TARGET_DIR=/tmp/chk3 cargo build --release     # the default --dampscope path
     python3 scripts/modal_crosscheck_sdypy.py [--snr-db 50] [--seeds 1 2 3] [--fmax 80] \
         [--pol-order 60] [--sdypy-f-window 4] [--dampscope PATH] [--per-mode]
 
@@ -21,7 +21,8 @@ numpy.random.default_rng(seed). The SAME noisy array goes to both methods:
   clock of the whole subprocess (process start, WAV read, identification, modes/shapes CSVs and
   PNG figures); the identification alone (from --timings) is printed as well.
 * sdypy-EMA: FRF per channel = rfft(response) / fs (the input is a unit impulse, so the
-  response spectrum is the accelerance FRF), lines from the first one ≥ 0.5 Hz to F;
+  response spectrum is the accelerance FRF), lines from the first one ≥ 0.5 Hz to F (df =
+  1/3 Hz: 0.67 … 79.67 Hz, sdypy drops the line at `upper` itself);
   EMA.Model(frf, freq, lower, upper=F, pol_order_high, frf_form='accelerance'), get_poles()
   (LSCF), then the automatic select_closest_poles() GIVEN THE TRUE DAMPED FREQUENCIES: sdypy's
   own stabilisation-chart selection is interactive, so it is helped here with the answer.
@@ -35,6 +36,9 @@ numpy.random.default_rng(seed). The SAME noisy array goes to both methods:
   frequency, the median f_d and ξ of all poles that pass sdypy's stability test (any order)
   within 0.5 % of it, i.e. without the ±2 Hz re-centring. It separates the LSCF estimator from
   the selector; it is helped even more (it is centred on the answer).
+
+Both sides run single-threaded (BLAS pinned to one thread, see below); the script takes ~10 s
+for three seeds.
 
 Scoring, per method and seed: each true mode below F is paired with the nearest identified
 mode within 0.5 %; found count, max |Δf|/f, max and median |ΔD|/D over the found modes,
@@ -55,8 +59,14 @@ import tempfile
 import time
 import warnings
 
-import numpy as np
-from scipy.io import wavfile
+# One BLAS thread, set before numpy loads: sdypy's LSCF does many small matrix products, and on
+# a loaded 2-core machine OpenBLAS's worker threads made get_poles 10-100x slower (measured
+# 0.7 s single-threaded vs 9-66 s per seed). dampscope's identification is single-threaded too.
+for _var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+from scipy.io import wavfile  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.dirname(HERE)
@@ -184,7 +194,14 @@ def score(f_true, f_id, d_id, fmax, count_spurious):
     }
 
 
+def finite_mean(values):
+    """Mean over the finite entries (NaN when there is none)."""
+    v = np.array(values, dtype=float)
+    return float(np.mean(v[np.isfinite(v)])) if np.isfinite(v).any() else float("nan")
+
+
 def fmt(v, digits):
+    """v with the given decimals, or an en dash for None / NaN."""
     return "–" if v is None or (isinstance(v, float) and np.isnan(v)) else f"{v:.{digits}f}"
 
 
@@ -256,8 +273,7 @@ def main():
                   f"{fmt(r['max_dd'], 2)} | {fmt(r['med_dd'], 2)} | {fmt(r['spurious'], 0)} | "
                   f"{r['time_note']} |")
         def mean(key):
-            v = np.array([r[key] for r in rows], dtype=float)
-            return float(np.mean(v[np.isfinite(v)])) if np.isfinite(v).any() else float("nan")
+            return finite_mean([r[key] for r in rows])
         sp = None if rows[0]["spurious"] is None else float(np.mean([r["spurious"] for r in rows]))
         t = "(same run)" if m == "sdypy stable median" else f"{mean('time'):.2f}"
         print(f"| **{m}** | mean | {np.mean([r['found'] for r in rows]):.1f}/{n} | "

@@ -189,18 +189,10 @@ fn regression_noise_seeds_that_made_spurious_or_merged_modes() {
 /// (same index) at MAC ≥ 0.98.
 #[test]
 fn shapes_match_a_coarser_model_with_mac_of_at_least_098() {
-    use dampscope::modal::model_shapes::{match_model, model_modes_at};
-    use dampscope::sim::model::{Model, SensorPosition};
+    use dampscope::modal::model_shapes::{match_model, model_modes_at, sensor_positions};
+    use dampscope::sim::model::Model;
     let set = open_recording_set(std::path::Path::new(SET)).unwrap();
-    let positions: Vec<SensorPosition> = set
-        .sensors
-        .iter()
-        .map(|s| SensorPosition {
-            id: s.id.clone(),
-            x_m: s.x_m,
-            y_m: s.y_m,
-        })
-        .collect();
+    let positions = sensor_positions(&set.sensors);
     let model = Model::load(std::path::Path::new("examples/plate-homogeneous.toml")).unwrap();
     let model_modes = model_modes_at(&model, &positions, 100.0).unwrap();
     let mut rec = recordings();

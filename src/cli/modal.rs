@@ -7,9 +7,10 @@ use std::time::Instant;
 use anyhow::Context;
 
 use super::bands_arg::InputFormatArgs;
-use crate::modal::model_shapes::{match_model, model_modes_at, ModelMatch, MODEL_FMAX_FACTOR};
+use crate::modal::model_shapes::{
+    match_model, model_modes_at, sensor_positions, ModelMatch, MODEL_FMAX_FACTOR,
+};
 use crate::modal::{identify_with_progress, ModalResult, ModalSettings, Recordings};
-use crate::sim::model::SensorPosition;
 use crate::source::stdin::open_input;
 
 /// Most samples per channel `modal` reads (the identification holds the whole record).
@@ -249,14 +250,7 @@ pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
             };
             let model = crate::sim::model::Model::load(path)
                 .with_context(|| format!("model {}", path.display()))?;
-            let positions: Vec<SensorPosition> = sensors
-                .iter()
-                .map(|s| SensorPosition {
-                    id: s.id.clone(),
-                    x_m: s.x_m,
-                    y_m: s.y_m,
-                })
-                .collect();
+            let positions = sensor_positions(sensors);
             let model_modes = model_modes_at(&model, &positions, MODEL_FMAX_FACTOR * args.fmax)
                 .with_context(|| format!("modes of the model {}", path.display()))?;
             match_model(&result.modes, &model_modes)

@@ -15,6 +15,18 @@ use crate::sim::model::{Model, SensorPosition};
 /// stiffer structure's modes near the limit still find their partner.
 pub const MODEL_FMAX_FACTOR: f64 = 1.3;
 
+/// Where a recording set's sensors are, as the model reads positions.
+pub fn sensor_positions(sensors: &[crate::source::recording_set::Sensor]) -> Vec<SensorPosition> {
+    sensors
+        .iter()
+        .map(|s| SensorPosition {
+            id: s.id.clone(),
+            x_m: s.x_m,
+            y_m: s.y_m,
+        })
+        .collect()
+}
+
 /// One mode of the model, its shape at the sensors.
 #[derive(Clone, Debug)]
 pub struct ModelMode {
