@@ -96,3 +96,21 @@ fn the_band_filter_ring_down_does_not_leak_into_the_damping() {
     let errors = damping_errors(&rec, &ModalSettings::new(5.0, 100.0));
     assert!(errors.iter().all(|e| e.abs() < 0.01), "{errors:?}");
 }
+
+/// A short record widens the sub-bands (their filters must ring down within it), and with them
+/// the guard above fmax: a range that fits the default plan's guard below Nyquist but not the
+/// widened one is refused with the range error, not analysed past Nyquist.
+#[test]
+fn a_short_record_checks_nyquist_with_its_widened_sub_bands() {
+    let rec = recordings(0.2, None);
+    let fmax_hz = 0.5 * FS - 15.0;
+    let default_guard_hz = 0.25 * 40.0;
+    assert!(fmax_hz + default_guard_hz < 0.5 * FS);
+    let err = identify(&rec, &ModalSettings::new(0.5, fmax_hz)).unwrap_err();
+    assert!(
+        matches!(err, dampscope::modal::ModalError::Range { .. }),
+        "{err}"
+    );
+    // The same record with a range clear of Nyquist runs.
+    identify(&rec, &ModalSettings::new(0.5, 100.0)).unwrap();
+}

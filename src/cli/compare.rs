@@ -18,9 +18,14 @@ use crate::error::{Error, Result};
 use crate::frontend::goyder::FilterDirection;
 use crate::frontend::onset::find_onset;
 use crate::frontend::{Band, FrontEnd};
+use crate::modal::{identify, ModalResult, ModalSettings, Recordings};
 use crate::pipeline::analyze_decay;
+use crate::source::recording_set::RecordingMeta;
 use crate::source::stdin::open_input;
 use crate::source::Block;
+
+/// The `--front-ends` name of the multichannel modal estimate.
+pub const MODAL_FRONT_END: &str = "modal";
 
 /// Most samples per channel that `compare` reads (2^27 ≈ 50 min at 44.1 kHz, 1 GiB as f64).
 pub const MAX_COMPARE_SAMPLES: usize = 1 << 27;
@@ -37,7 +42,9 @@ pub struct CompareArgs {
     /// `auto` (one band per spectral peak of each channel's decay), `octave`, `third-octave`.
     #[command(flatten)]
     pub bands: BandArgs,
-    /// Front ends to compare, comma-separated: stft, goyder, octave.
+    /// Front ends to compare, comma-separated: stft, goyder, octave, and `modal` (the
+    /// multichannel identification of `dampscope modal` over the bands' range: per channel and
+    /// band, the mode that carries most of that channel's energy in the band).
     #[arg(long, value_delimiter = ',', default_value = "stft,goyder")]
     pub front_ends: Vec<String>,
     /// Time direction of the Goyder and octave filters.
@@ -107,7 +114,7 @@ pub fn build_front_end(
         other => {
             return Err(Error::setting(
                 "--front-ends",
-                format!("expected stft, goyder or octave, got '{other}'"),
+                format!("expected stft, goyder, octave or modal, got '{other}'"),
             ))
         }
     };
@@ -138,10 +145,93 @@ fn table_line(channel: &str, band: &Band, fe: &dyn FrontEnd, e: &DecayEstimate) 
             .map(|f| f.as_str())
             .collect::<Vec<_>>()
             .join(";"),
+        "-".into(),
+        fmt_opt(e.f_dominant_hz, 1.0, 3),
     ]
 }
 
-const HEADER: [&str; 12] = [
+/// The modal estimate of one channel and band: the dominant mode's D and its standard
+/// deviation, T60 = 1.1/(D f), n_stable in `n_points`; flags `no_mode` (none in the band),
+/// `several_modes` (the band holds more than one; the dominant one is shown),
+/// `outside_modal_range` or `modal_failed` (with the reason on stderr).
+fn modal_line(channel: &str, index: usize, band: &Band, modal: &ModalOutcome) -> Vec<String> {
+    let mut row = vec![
+        channel.to_string(),
+        format!("{:.2}-{:.2}", band.lo_hz, band.hi_hz),
+        format!("{}", band.nominal_hz),
+        "modal".to_string(),
+    ];
+    let dash = || "-".to_string();
+    let found = match modal {
+        ModalOutcome::Failed => Err("modal_failed"),
+        ModalOutcome::Done { fmax_hz, .. } if band.hi_hz > *fmax_hz => Err("outside_modal_range"),
+        ModalOutcome::Done { result, .. } => result
+            .dominant_mode(band.lo_hz, band.hi_hz, index)
+            .ok_or("no_mode"),
+    };
+    match found {
+        Ok((m, count)) => row.extend([
+            format!("{:.4}", m.damping_ratio * 100.0),
+            format!("{:.4}", 1.1 / (m.damping_ratio * m.frequency_hz)),
+            dash(),
+            m.n_stable.to_string(),
+            dash(),
+            dash(),
+            dash(),
+            if count > 1 { "several_modes" } else { "" }.to_string(),
+            format!("{:.4}", m.damping_std * 100.0),
+            format!("{:.3}", m.frequency_hz),
+        ]),
+        Err(flag) => {
+            row.extend([dash(), dash(), dash(), "0".into(), dash(), dash(), dash()]);
+            row.extend([flag.to_string(), dash(), dash()]);
+        }
+    }
+    row
+}
+
+/// The multichannel identification behind the `modal` rows.
+enum ModalOutcome {
+    /// Identified up to `fmax_hz`.
+    Done { result: ModalResult, fmax_hz: f64 },
+    /// Identification could not run (reason printed).
+    Failed,
+}
+
+/// Identifies the modes of all channels over the bands' range (clamped below the highest
+/// frequency the sample rate allows), with the recording set's exponential window, if any.
+fn identify_for_bands(
+    fs_hz: f64,
+    names: &[String],
+    data: &[Vec<f64>],
+    bands: &[Band],
+    meta: Option<&RecordingMeta>,
+) -> ModalOutcome {
+    let lo = bands.iter().map(|b| b.lo_hz).fold(f64::INFINITY, f64::min);
+    let hi = bands.iter().map(|b| b.hi_hz).fold(0.0, f64::max);
+    let plan = crate::modal::DEFAULT_SUBBANDS;
+    let fmax_hz = hi.min(0.5 * fs_hz - plan.guard_fraction * plan.max_width_hz - 1.0);
+    let settings = ModalSettings {
+        exponential_window_tau_s: meta.and_then(|m| m.exponential_window_tau_s),
+        ..ModalSettings::new(lo.max(0.0), fmax_hz)
+    };
+    let rec = Recordings {
+        fs_hz,
+        names: names.to_vec(),
+        channels: data.to_vec(),
+    };
+    match identify(&rec, &settings) {
+        Ok(result) => ModalOutcome::Done { result, fmax_hz },
+        Err(e) => {
+            eprintln!("dampscope: warning: modal identification failed: {e}");
+            ModalOutcome::Failed
+        }
+    }
+}
+
+/// Columns of the table and of compare.csv (`f_hz`: the decay's dominant frequency or the
+/// mode's frequency; `d_std_pct`: the modal estimate's standard deviation).
+const HEADER: [&str; 14] = [
     "channel",
     "band_hz",
     "nominal_hz",
@@ -154,9 +244,14 @@ const HEADER: [&str; 12] = [
     "t_res_ms",
     "f_res_hz",
     "flags",
+    "d_std_pct",
+    "f_hz",
 ];
 
-fn read_all(args: &CompareArgs, input: &str) -> anyhow::Result<(f64, Vec<String>, Vec<Vec<f64>>)> {
+/// Sample rate, channel names, samples and the recording set's metadata of `input`.
+type ReadInput = (f64, Vec<String>, Vec<Vec<f64>>, Option<RecordingMeta>);
+
+fn read_all(args: &CompareArgs, input: &str) -> anyhow::Result<ReadInput> {
     let opts = args.input_format.options();
     let mut opened = open_input(input, &opts)?;
     let info = opened.source.info().clone();
@@ -171,7 +266,7 @@ fn read_all(args: &CompareArgs, input: &str) -> anyhow::Result<(f64, Vec<String>
             "input {input} is longer than {MAX_COMPARE_SAMPLES} samples per channel, the most compare reads"
         );
     }
-    Ok((info.sample_rate_hz, info.channel_names, data))
+    Ok((info.sample_rate_hz, info.channel_names, data, opened.meta))
 }
 
 /// Runs `compare` (or the sweep with `--sweep`).
@@ -196,9 +291,17 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         .input
         .as_deref()
         .context("compare needs INPUT (a file, a directory or -), or --sweep")?;
-    let (fs, names, data) = read_all(args, input)?;
-    let mut table: Vec<Vec<String>> = Vec::new();
-    for (name, x) in names.iter().zip(&data) {
+    let (fs, names, data, meta) = read_all(args, input)?;
+    let decay_front_ends: Vec<&String> = args
+        .front_ends
+        .iter()
+        .filter(|n| n.trim() != MODAL_FRONT_END)
+        .collect();
+    let want_modal = decay_front_ends.len() < args.front_ends.len();
+    let settings = args.bands.estimate()?;
+    // Per channel: its index, its decay (from the onset) and its bands.
+    let mut channels = Vec::new();
+    for (index, (name, x)) in names.iter().zip(&data).enumerate() {
         let Some(onset) = find_onset(x, args.onset_level_db) else {
             eprintln!("dampscope: warning: channel {name} is silent; skipped");
             continue;
@@ -208,16 +311,27 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         for w in warnings {
             eprintln!("dampscope: warning: {w}");
         }
-        let settings = args.bands.estimate()?;
+        channels.push((index, decay, bands));
+    }
+    let modal = want_modal.then(|| {
+        let all_bands: Vec<Band> = channels.iter().flat_map(|c| c.2.clone()).collect();
+        identify_for_bands(fs, &names, &data, &all_bands, meta.as_ref())
+    });
+    let mut table: Vec<Vec<String>> = Vec::new();
+    for (index, decay, bands) in &channels {
+        let name = &names[*index];
         let mut per_fe = Vec::new();
-        for fe_name in &args.front_ends {
-            let mut fe = build_front_end(fe_name, args, fs, &bands)?;
+        for fe_name in &decay_front_ends {
+            let mut fe = build_front_end(fe_name, args, fs, bands)?;
             let est = analyze_decay(decay, fe.as_mut(), &settings);
             per_fe.push((fe, est));
         }
         for (b, band) in bands.iter().enumerate() {
             for (fe, est) in &per_fe {
                 table.push(table_line(name, band, fe.as_ref(), &est[b]));
+            }
+            if let Some(m) = &modal {
+                table.push(modal_line(name, *index, band, m));
             }
         }
     }

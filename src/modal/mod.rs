@@ -155,6 +155,31 @@ pub struct ModalResult {
     pub names: Vec<String>,
 }
 
+impl ModalResult {
+    /// The mode that carries most of channel `channel`'s energy inside `lo_hz..hi_hz`, and how
+    /// many modes the band holds: `None` when no mode lies in the band. A mode's energy at a
+    /// channel is its modal SNR (energy over all channels) times the channel's share of the
+    /// shape's squared norm. This is the mode a decay fit of that channel's band mostly sees.
+    pub fn dominant_mode(&self, lo_hz: f64, hi_hz: f64, channel: usize) -> Option<(&Mode, usize)> {
+        let in_band: Vec<&Mode> = self
+            .modes
+            .iter()
+            .filter(|m| m.frequency_hz >= lo_hz && m.frequency_hz < hi_hz)
+            .collect();
+        let energy_at = |m: &Mode| {
+            let total: f64 = m.shape.iter().map(|x| x.norm_sqr()).sum();
+            let here = m.shape.get(channel).map_or(0.0, |x| x.norm_sqr());
+            let share = if total > 0.0 { here / total } else { 0.0 };
+            10f64.powf(m.modal_snr_db / 10.0) * share
+        };
+        let best = in_band
+            .iter()
+            .copied()
+            .max_by(|a, b| energy_at(a).total_cmp(&energy_at(b)))?;
+        Some((best, in_band.len()))
+    }
+}
+
 /// Why identification cannot run at all.
 #[derive(Debug, thiserror::Error)]
 pub enum ModalError {
@@ -198,6 +223,20 @@ pub enum ModalError {
     },
 }
 
+/// `fmin..fmax` is ordered and `fmax` plus the widest sub-band's guard stays below Nyquist.
+fn check_range(rec: &Recordings, s: &ModalSettings, plan: &SubBandPlan) -> Result<(), ModalError> {
+    let nyquist_hz = rec.fs_hz / 2.0;
+    let guard = plan.guard_fraction * plan.max_width_hz;
+    if !(s.fmin_hz >= 0.0 && s.fmin_hz < s.fmax_hz && s.fmax_hz + guard < nyquist_hz) {
+        return Err(ModalError::Range {
+            fmin_hz: s.fmin_hz,
+            fmax_hz: s.fmax_hz,
+            nyquist_hz,
+        });
+    }
+    Ok(())
+}
+
 fn validate(rec: &Recordings, s: &ModalSettings) -> Result<usize, ModalError> {
     let n = rec.channels.first().map_or(0, Vec::len);
     if rec.channels.is_empty() || n == 0 {
@@ -213,15 +252,7 @@ fn validate(rec: &Recordings, s: &ModalSettings) -> Result<usize, ModalError> {
             got: x.len(),
         });
     }
-    let nyquist_hz = rec.fs_hz / 2.0;
-    let guard = s.subbands.guard_fraction * s.subbands.max_width_hz;
-    if !(s.fmin_hz >= 0.0 && s.fmin_hz < s.fmax_hz && s.fmax_hz + guard < nyquist_hz) {
-        return Err(ModalError::Range {
-            fmin_hz: s.fmin_hz,
-            fmax_hz: s.fmax_hz,
-            nyquist_hz,
-        });
-    }
+    check_range(rec, s, &s.subbands)?;
     let setting = |name, expected, got: String| ModalError::Setting {
         name,
         expected,
@@ -313,6 +344,8 @@ pub fn identify_with_progress(
     };
     let record_s = (n - start) as f64 / rec.fs_hz;
     let subbands = settings.subbands.fitted_to_record(record_s);
+    // A short record widens the sub-bands, and with them the guard above fmax.
+    check_range(rec, settings, &subbands)?;
     let plan_of_bands = plan_subbands(settings.fmin_hz, settings.fmax_hz, &subbands);
     let total = plan_of_bands.len();
     for (done, sub) in plan_of_bands.into_iter().enumerate() {
