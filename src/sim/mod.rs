@@ -9,6 +9,7 @@ pub mod frf;
 pub mod impulse;
 pub mod mesh;
 pub mod model;
+pub mod poles;
 pub mod reduced;
 pub mod simulate;
 pub mod stream;
