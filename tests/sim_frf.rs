@@ -405,12 +405,19 @@ fn damped_poles_equal_the_dense_complex_eigenvalues_and_rayleigh() {
     viscous.rayleigh = Some((alpha, beta));
     let red = ReducedModel::build(&viscous, &fk, sk.as_ref(), BasisOptions::default()).unwrap();
     let poles = red.damped_poles().unwrap();
-    for (f, p) in fk.iter().zip(&poles).filter(|(f, _)| **f > 1.0 && **f < 300.0) {
+    for (f, p) in fk
+        .iter()
+        .zip(&poles)
+        .filter(|(f, _)| **f > 1.0 && **f < 300.0)
+    {
         let w = TAU * f;
         let d = alpha / (2.0 * w) + beta * w / 2.0;
         // 1e-7: the eigenvalues of the non-normal 2m × 2m state matrix (2e-9 measured).
         assert!((p.1 / d - 1.0).abs() < 1e-7, "{f} Hz: {p:?} vs D {d}");
-        assert!((p.0 / (f * (1.0 - d * d).sqrt()) - 1.0).abs() < 1e-7, "{f} Hz: {p:?}");
+        assert!(
+            (p.0 / (f * (1.0 - d * d).sqrt()) - 1.0).abs() < 1e-7,
+            "{f} Hz: {p:?}"
+        );
     }
     let sls = lattice(Some(sls_patch())).system();
     let red = ReducedModel::build(&sls, &fk, sk.as_ref(), BasisOptions::default()).unwrap();

@@ -55,7 +55,8 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
     let (modes, report) = lowest_modes_with(&system, request, &EigenOptions::default())?;
     let text = if args.damping {
         let fmax_hz = modes.frequencies_hz.last().copied().unwrap_or(0.0) * 1.001;
-        let poles = crate::sim::poles::damped_poles_below(&system, fmax_hz, &EigenOptions::default())?;
+        let poles =
+            crate::sim::poles::damped_poles_below(&system, fmax_hz, &EigenOptions::default())?;
         anyhow::ensure!(
             poles.len() == modes.frequencies_hz.len(),
             "{} damped poles for {} modes below {fmax_hz:.1} Hz (a pole pushed across the limit)",

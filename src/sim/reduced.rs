@@ -494,8 +494,9 @@ impl ReducedModel {
         if self.factors.iter().any(|t| t.sls.is_some()) {
             return Err(FrfError::Invalid {
                 what: "damped poles".into(),
-                message: "expected loss factors and Rayleigh damping only, got a viscoelastic region"
-                    .into(),
+                message:
+                    "expected loss factors and Rayleigh damping only, got a viscoelastic region"
+                        .into(),
             });
         }
         let m = self.size;
