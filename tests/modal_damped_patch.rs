@@ -26,9 +26,12 @@ fn truth(fmax_hz: f64) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// A true pole (damped f in Hz, D) and the identified mode paired with it.
+type Pair<'a> = ((f64, f64), &'a Mode);
+
 /// Every true pole paired with the nearest identified mode (within 0.5 %), and the modes left
 /// over.
-fn pair_up<'a>(want: &[(f64, f64)], modes: &'a [Mode]) -> (Vec<((f64, f64), &'a Mode)>, Vec<f64>) {
+fn pair_up<'a>(want: &[(f64, f64)], modes: &'a [Mode]) -> (Vec<Pair<'a>>, Vec<f64>) {
     let mut used = vec![false; modes.len()];
     let mut pairs = Vec::new();
     for &(f, d) in want {
