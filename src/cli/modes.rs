@@ -54,15 +54,13 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
     let t_assembly = t0.elapsed().as_secs_f64();
     let (modes, report) = lowest_modes_with(&system, request, &EigenOptions::default())?;
     let text = if args.damping {
-        let fmax_hz = modes.frequencies_hz.last().copied().unwrap_or(0.0) * 1.001;
-        let poles =
-            crate::sim::poles::damped_poles_below(&system, fmax_hz, &EigenOptions::default())?;
-        anyhow::ensure!(
-            poles.len() == modes.frequencies_hz.len(),
-            "{} damped poles for {} modes below {fmax_hz:.1} Hz (a pole pushed across the limit)",
-            poles.len(),
-            modes.frequencies_hz.len()
-        );
+        let highest_hz = modes.frequencies_hz.last().copied().unwrap_or(0.0);
+        let poles = crate::sim::poles::lowest_damped_poles(
+            &system,
+            modes.frequencies_hz.len(),
+            highest_hz,
+            &EigenOptions::default(),
+        )?;
         let mut text = String::from("mode,frequency_hz,damped_frequency_hz,damping_ratio\n");
         for (i, (f, p)) in modes.frequencies_hz.iter().zip(&poles).enumerate() {
             text.push_str(&format!(

@@ -21,16 +21,19 @@ pub struct DampedPole {
     pub damping_ratio: f64,
 }
 
-/// The damped poles of `system` below `fmax_hz`, by frequency. Errors for a viscoelastic (SLS)
-/// region, whose poles depend on frequency, and when the eigensolver fails.
-pub fn damped_poles_below(
+/// The `count` lowest damped poles of `system`, by frequency, whose undamped modes lie at or
+/// below `highest_mode_hz` (the basis holds the modes below [`POLE_BASIS_FACTOR`] times that).
+/// Errors for a viscoelastic (SLS) region, whose poles depend on frequency, when the
+/// eigensolver fails, and when fewer than `count` poles come out.
+pub fn lowest_damped_poles(
     system: &FeSystem,
-    fmax_hz: f64,
+    count: usize,
+    highest_mode_hz: f64,
     options: &EigenOptions,
 ) -> Result<Vec<DampedPole>, SimError> {
     let (modes, _) = lowest_modes_with(
         system,
-        ModeRequest::BelowHz(POLE_BASIS_FACTOR * fmax_hz),
+        ModeRequest::BelowHz(POLE_BASIS_FACTOR * highest_mode_hz),
         options,
     )?;
     let reduced = ReducedModel::build(
@@ -39,11 +42,16 @@ pub fn damped_poles_below(
         modes.shapes.as_ref(),
         BasisOptions::default(),
     )?;
-    Ok(reduced
-        .damped_poles()?
-        .into_iter()
-        .filter(|p| p.0 < fmax_hz)
-        .map(|(f, d)| DampedPole {
+    let poles = reduced.damped_poles()?;
+    if poles.len() < count {
+        return Err(SimError::Eigen(format!(
+            "expected {count} damped poles, got {}",
+            poles.len()
+        )));
+    }
+    Ok(poles[..count]
+        .iter()
+        .map(|&(f, d)| DampedPole {
             damped_frequency_hz: f,
             damping_ratio: d,
         })
