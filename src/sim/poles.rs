@@ -3,7 +3,7 @@
 //! energy gives these only to first order; here they are the eigenvalues of the damped system
 //! reduced to its modes and residual vectors (see [`ReducedModel::damped_poles`]).
 
-use super::eigen::{lowest_modes_with, EigenOptions, ModeRequest};
+use super::eigen::{lowest_modes_with, EigenOptions, ModeRequest, Modes};
 use super::reduced::{BasisOptions, ReducedModel};
 use super::{FeSystem, SimError};
 
@@ -36,6 +36,17 @@ pub fn lowest_damped_poles(
         ModeRequest::BelowHz(POLE_BASIS_FACTOR * highest_mode_hz),
         options,
     )?;
+    damped_poles_from_modes(system, &modes, count)
+}
+
+/// The `count` lowest damped poles of `system` in the basis of `modes` (its undamped modes,
+/// which should reach well above the poles asked for; see [`POLE_BASIS_FACTOR`]) and residual
+/// vectors. Errors as [`lowest_damped_poles`].
+pub fn damped_poles_from_modes(
+    system: &FeSystem,
+    modes: &Modes,
+    count: usize,
+) -> Result<Vec<DampedPole>, SimError> {
     let reduced = ReducedModel::build(
         system,
         &modes.frequencies_hz,
