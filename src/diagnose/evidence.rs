@@ -6,7 +6,7 @@
 //! user's model differs from the structure in form alone (mesh, plate theory), so that physics
 //! is only claimed for differences beyond that.
 
-use crate::modal::model_shapes::mac_complex_real;
+use crate::modal::model_shapes::{mac_complex_real, shape_at};
 use crate::modal::Mode;
 use crate::sim::assembly::{assemble, sensors_at};
 use crate::sim::eigen::{lowest_modes, ModeRequest};
@@ -60,15 +60,7 @@ pub fn model_poles_at(
             frequency_hz: basis.frequencies_hz[i],
             damped_frequency_hz: poles[i].damped_frequency_hz,
             damping_ratio: poles[i].damping_ratio,
-            shape: sensors
-                .iter()
-                .map(|s| {
-                    s.weights
-                        .iter()
-                        .map(|&(d, w)| w * basis.shapes[(d, i)])
-                        .sum()
-                })
-                .collect(),
+            shape: shape_at(&sensors, basis.shapes.as_ref(), i),
         })
         .collect())
 }

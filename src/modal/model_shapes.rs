@@ -51,17 +51,21 @@ pub fn model_modes_at(
         .enumerate()
         .map(|(i, &f)| ModelMode {
             frequency_hz: f,
-            shape: sensors
-                .iter()
-                .map(|s| {
-                    s.weights
-                        .iter()
-                        .map(|&(d, w)| w * modes.shapes[(d, i)])
-                        .sum()
-                })
-                .collect(),
+            shape: shape_at(&sensors, modes.shapes.as_ref(), i),
         })
         .collect())
+}
+
+/// Column `col` of `shapes` (n_free × modes) read at each sensor (its interpolation weights).
+pub fn shape_at(
+    sensors: &[crate::sim::system::SensorWeights],
+    shapes: faer::MatRef<'_, f64>,
+    col: usize,
+) -> Vec<f64> {
+    sensors
+        .iter()
+        .map(|s| s.weights.iter().map(|&(d, w)| w * shapes[(d, col)]).sum())
+        .collect()
 }
 
 /// An identified mode's partner in the model.
