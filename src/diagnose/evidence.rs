@@ -38,31 +38,76 @@ pub struct ModelPole {
     pub shape: Vec<f64>,
 }
 
+/// A model solved once for a diagnosis: its undamped modes (to [`POLE_BASIS_FACTOR`] × the
+/// range, the basis of its damped poles) and everything read from them.
+pub struct ModelView {
+    /// The model.
+    pub model: Model,
+    /// Its assembled system.
+    pub system: crate::sim::FeSystem,
+    /// Its undamped modes, mass-normalised, to twice the range.
+    pub basis: crate::sim::eigen::Modes,
+    /// How many of them lie below the range's upper limit.
+    pub count: usize,
+    /// The range's upper limit, Hz.
+    pub fmax_hz: f64,
+}
+
+impl ModelView {
+    /// Assembles and solves `model` for the modes below `fmax_hz`.
+    pub fn new(model: &Model, fmax_hz: f64) -> Result<Self, SimError> {
+        let system = assemble(model)?;
+        let basis = lowest_modes(&system, ModeRequest::BelowHz(POLE_BASIS_FACTOR * fmax_hz))?;
+        let count = basis
+            .frequencies_hz
+            .iter()
+            .filter(|&&f| f < fmax_hz)
+            .count();
+        Ok(Self {
+            model: model.clone(),
+            system,
+            basis,
+            count,
+            fmax_hz,
+        })
+    }
+
+    /// The modes below the range read at `positions`: one vector per mode, one value per
+    /// position (mass-normalised out-of-plane displacement, m/√kg).
+    pub fn shapes_at(&self, positions: &[SensorPosition]) -> Result<Vec<Vec<f64>>, SimError> {
+        let sensors = sensors_at(&self.model, positions)?;
+        Ok((0..self.count)
+            .map(|i| shape_at(&sensors, self.basis.shapes.as_ref(), i))
+            .collect())
+    }
+
+    /// The damped poles below the range with their shapes at `positions`. Errors as the
+    /// simulator's (an SLS region: its poles depend on frequency).
+    pub fn poles_at(&self, positions: &[SensorPosition]) -> Result<Vec<ModelPole>, SimError> {
+        let poles = damped_poles_from_modes(&self.system, &self.basis, self.count)?;
+        let shapes = self.shapes_at(positions)?;
+        Ok(shapes
+            .into_iter()
+            .enumerate()
+            .map(|(i, shape)| ModelPole {
+                mode: i + 1,
+                frequency_hz: self.basis.frequencies_hz[i],
+                damped_frequency_hz: poles[i].damped_frequency_hz,
+                damping_ratio: poles[i].damping_ratio,
+                shape,
+            })
+            .collect())
+    }
+}
+
 /// The model's damped poles with undamped natural frequency below `fmax_hz`, their shapes at
-/// `positions`. Errors as the simulator's (an SLS region: its poles depend on frequency).
+/// `positions` ([`ModelView::poles_at`] of a fresh view).
 pub fn model_poles_at(
     model: &Model,
     positions: &[SensorPosition],
     fmax_hz: f64,
 ) -> Result<Vec<ModelPole>, SimError> {
-    let system = assemble(model)?;
-    let sensors = sensors_at(model, positions)?;
-    let basis = lowest_modes(&system, ModeRequest::BelowHz(POLE_BASIS_FACTOR * fmax_hz))?;
-    let count = basis
-        .frequencies_hz
-        .iter()
-        .filter(|&&f| f < fmax_hz)
-        .count();
-    let poles = damped_poles_from_modes(&system, &basis, count)?;
-    Ok((0..count)
-        .map(|i| ModelPole {
-            mode: i + 1,
-            frequency_hz: basis.frequencies_hz[i],
-            damped_frequency_hz: poles[i].damped_frequency_hz,
-            damping_ratio: poles[i].damping_ratio,
-            shape: shape_at(&sensors, basis.shapes.as_ref(), i),
-        })
-        .collect())
+    ModelView::new(model, fmax_hz)?.poles_at(positions)
 }
 
 /// A measured mode and its model partner.

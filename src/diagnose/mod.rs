@@ -19,6 +19,7 @@
 //! the model gives "no change" rather than invented physics.
 
 pub mod evidence;
+pub mod mass;
 pub mod nnls;
 
 use faer::Mat;

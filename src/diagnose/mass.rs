@@ -1,0 +1,221 @@
+//! `added_mass`: a point mass the model lacks, found from the frequency evidence. A mass m at
+//! point q lowers mode i's frequency by Δf_i/f_i ≈ −½ m φ_i(q)² (φ mass-normalised), so modes
+//! with an antinode at q drop and modes with a nodal line through q do not. Over a grid of
+//! candidate points, ln(f_measured/f_model) = c + m·(−½φ_i(q)²) is fitted by least squares (c
+//! absorbs the model-form stiffness offset, m ≥ 0); the best point is kept when it pays for its
+//! three parameters (m, x, y) in the Bayesian information criterion with the noise level
+//! profiled from the residual (n ln(RSS/n) + k ln n; RSS no lower than the identification's
+//! own frequency variance). Points with the same fit (the plate's mirror images) are told apart
+//! by re-solving the model with the mass at each and comparing the shapes.
+
+use super::evidence::{Evidence, ModelView};
+use crate::modal::Mode;
+use crate::sim::error::SimError;
+use crate::sim::model::{PointMass, SensorPosition};
+
+/// Spacing of the candidate points, m.
+pub const MASS_GRID_SPACING_M: f64 = 0.05;
+/// Candidate points whose residual is within this fraction of the best one's are images of it
+/// (the same φ² by symmetry).
+const IMAGE_RSS_REL: f64 = 1e-3;
+
+/// A mass is reported when its BIC gain reaches this: "strong" evidence on Kass and Raftery's
+/// scale of 2 ln(Bayes factor) (6–10), not a value fitted to any test case.
+pub const MIN_BIC_GAIN: f64 = 6.0;
+
+/// The best point-mass hypothesis.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct MassFit {
+    /// Position, m.
+    pub x_m: f64,
+    /// Position, m.
+    pub y_m: f64,
+    /// Mass, kg.
+    pub mass_kg: f64,
+    /// Residual sum of squares of ln f without the mass (offset only).
+    pub rss_none: f64,
+    /// Residual sum of squares with it.
+    pub rss: f64,
+    /// BIC(no mass) − BIC(mass): positive when the mass pays for its parameters.
+    pub bic_gain: f64,
+    /// How many mirror images the frequencies could not tell apart (1: none).
+    pub images: usize,
+}
+
+/// The slope of the least squares y = c + m a, any sign.
+fn offset_and_slope_signed(y: &[f64], a: &[f64]) -> f64 {
+    let n = y.len() as f64;
+    let (ya, aa) = (y.iter().sum::<f64>() / n, a.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (yi, ai) in y.iter().zip(a) {
+        sxy += (ai - aa) * (yi - ya);
+        sxx += (ai - aa) * (ai - aa);
+    }
+    if sxx > 0.0 {
+        sxy / sxx
+    } else {
+        0.0
+    }
+}
+
+impl MassFit {
+    /// Whether the mass pays for its parameters ([`MIN_BIC_GAIN`]).
+    pub fn is_finding(&self) -> bool {
+        self.mass_kg > 0.0 && self.bic_gain >= MIN_BIC_GAIN
+    }
+}
+
+/// Least squares of y = c + m a with m ≥ 0: (c, m, rss).
+fn offset_and_slope(y: &[f64], a: &[f64]) -> (f64, f64, f64) {
+    let n = y.len() as f64;
+    let (ya, aa) = (y.iter().sum::<f64>() / n, a.iter().sum::<f64>() / n);
+    let m = offset_and_slope_signed(y, a).max(0.0);
+    let c = ya - m * aa;
+    let rss = y
+        .iter()
+        .zip(a)
+        .map(|(yi, ai)| (yi - c - m * ai).powi(2))
+        .sum();
+    (c, m, rss)
+}
+
+/// The candidate points: a grid of `spacing_m` over the plate, symmetric about its centre.
+fn grid(lx_m: f64, ly_m: f64, spacing_m: f64) -> Vec<SensorPosition> {
+    let (nx, ny) = (
+        (lx_m / spacing_m).round() as usize,
+        (ly_m / spacing_m).round() as usize,
+    );
+    let mut out = Vec::with_capacity(nx * ny);
+    for j in 0..ny {
+        for i in 0..nx {
+            out.push(SensorPosition {
+                id: format!("q{i}_{j}"),
+                x_m: lx_m * (i as f64 + 0.5) / nx as f64,
+                y_m: ly_m * (j as f64 + 0.5) / ny as f64,
+            });
+        }
+    }
+    out
+}
+
+/// Fits a point mass to the frequency evidence (`evidence` built from `measured` against
+/// `view`'s poles at the `sensors`). `None` with fewer than four pairs. The images are
+/// resolved by re-solving the model with the mass at each (one eigen-solve per image).
+pub fn fit_point_mass(
+    measured: &[Mode],
+    evidence: &Evidence,
+    view: &ModelView,
+    sensors: &[SensorPosition],
+) -> Result<Option<MassFit>, SimError> {
+    let pairs: Vec<_> = evidence
+        .pairs
+        .iter()
+        .filter(|p| p.model < view.count)
+        .collect();
+    let n = pairs.len();
+    if n < 4 {
+        return Ok(None);
+    }
+    let y: Vec<f64> = pairs.iter().map(|p| p.frequency_rel.ln_1p()).collect();
+    let noise: f64 = pairs
+        .iter()
+        .map(|p| {
+            (measured[p.measured].frequency_std_hz / measured[p.measured].frequency_hz).powi(2)
+        })
+        .sum();
+    let rss_none = offset_and_slope(&y, &vec![0.0; n]).2;
+    let plate = &view.model.plate;
+    let points = grid(plate.lx, plate.ly, MASS_GRID_SPACING_M);
+    let phi = view.shapes_at(&points)?;
+    let fits: Vec<(usize, f64, f64)> = (0..points.len())
+        .map(|q| {
+            let a: Vec<f64> = pairs
+                .iter()
+                .map(|p| -0.5 * phi[p.model][q].powi(2))
+                .collect();
+            let (_, m, rss) = offset_and_slope(&y, &a);
+            (q, m, rss)
+        })
+        .collect();
+    let best = fits
+        .iter()
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .copied()
+        .expect("the grid is not empty");
+    let bic = |rss: f64, k: f64| n as f64 * (rss.max(noise) / n as f64).ln() + k * (n as f64).ln();
+    let images: Vec<(usize, f64, f64)> = fits
+        .iter()
+        .filter(|f| f.1 > 0.0 && f.2 <= best.2 * (1.0 + IMAGE_RSS_REL) + 1e-300)
+        .copied()
+        .collect();
+    let chosen = if images.len() > 1 {
+        closest_shapes(measured, view, sensors, &points, &images)?
+    } else {
+        best
+    };
+    // One Gauss–Newton step on the mass through the re-solved model: the first-order
+    // sensitivity underestimates a mass whose own shape change matters.
+    let (x_m, y_m) = (points[chosen.0].x_m, points[chosen.0].y_m);
+    let a: Vec<f64> = pairs
+        .iter()
+        .map(|p| -0.5 * phi[p.model][chosen.0].powi(2))
+        .collect();
+    let updated = with_mass(view, x_m, y_m, chosen.1)?.poles_at(sensors)?;
+    let after: Vec<f64> = pairs
+        .iter()
+        .map(|p| {
+            let f = measured[p.measured].frequency_hz;
+            (f / updated[p.model].damped_frequency_hz).ln()
+        })
+        .collect();
+    let step = offset_and_slope_signed(&after, &a);
+    let mass_kg = (chosen.1 + step).max(0.0);
+    Ok(Some(MassFit {
+        x_m,
+        y_m,
+        mass_kg,
+        rss_none,
+        rss: chosen.2,
+        bic_gain: bic(rss_none, 1.0) - bic(chosen.2, 4.0),
+        images: images.len(),
+    }))
+}
+
+/// Among equally good candidate points, the one whose re-solved model's shapes fit the
+/// measured shapes best (the sum over pairs of 1 − MAC).
+fn closest_shapes(
+    measured: &[Mode],
+    view: &ModelView,
+    sensors: &[SensorPosition],
+    points: &[SensorPosition],
+    candidates: &[(usize, f64, f64)],
+) -> Result<(usize, f64, f64), SimError> {
+    let mut best: Option<((usize, f64, f64), f64)> = None;
+    for &cand in candidates {
+        let poles =
+            with_mass(view, points[cand.0].x_m, points[cand.0].y_m, cand.1)?.poles_at(sensors)?;
+        let e = Evidence::gather(measured, poles);
+        let misfit: f64 = e.pairs.iter().map(|p| 1.0 - p.mac).sum::<f64>()
+            + (measured.len() - e.pairs.len()) as f64;
+        if best.is_none_or(|b| misfit < b.1) {
+            best = Some((cand, misfit));
+        }
+    }
+    Ok(best.expect("candidates are not empty").0)
+}
+
+/// `view`'s model with a point mass added, solved over the same range.
+pub fn with_mass(
+    view: &ModelView,
+    x_m: f64,
+    y_m: f64,
+    mass_kg: f64,
+) -> Result<ModelView, SimError> {
+    let mut model = view.model.clone();
+    model.point_masses.push(PointMass {
+        x: x_m,
+        y: y_m,
+        mass: mass_kg,
+    });
+    ModelView::new(&model, view.fmax_hz)
+}
