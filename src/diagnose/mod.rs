@@ -18,6 +18,7 @@
 //! and this one. The hypothesis with the lowest BIC = χ² + k ln n wins, so clean data matching
 //! the model gives "no change" rather than invented physics.
 
+pub mod damping;
 pub mod evidence;
 pub mod mass;
 pub mod nnls;
