@@ -1,8 +1,8 @@
 //! `added_mass`: a point mass the model lacks, found from the frequency evidence. A mass m at
 //! point q lowers mode i's frequency by Δf_i/f_i ≈ −½ m φ_i(q)² (φ mass-normalised), so modes
 //! with an antinode at q drop and modes with a nodal line through q do not. Over a grid of
-//! candidate points, ln(f_measured/f_model) = c + m·(−½φ_i(q)²) is fitted by least squares (c
-//! absorbs the model-form stiffness offset, m ≥ 0); the best point is kept when it pays for its
+//! candidate points, ln(f_measured/f_model) = c₀ + c₁f² + m·(−½φ_i(q)²) is fitted by least
+//! squares (c₀ and c₁ absorb the model-form offset and a mesh's f² drift; m ≥ 0); the best point is kept when it pays for its
 //! three parameters (m, x, y) in the Bayesian information criterion with the noise level
 //! profiled from the residual (n ln(RSS/n) + k ln n; RSS no lower than the identification's
 //! own frequency variance). Points with the same fit (the plate's mirror images) are told apart
@@ -11,7 +11,7 @@
 use super::evidence::{Evidence, ModelView};
 use crate::modal::Mode;
 use crate::sim::error::SimError;
-use crate::sim::model::{PointMass, SensorPosition};
+use crate::sim::model::{Model, PointMass, SensorPosition};
 
 /// Spacing of the candidate points, m.
 pub const MASS_GRID_SPACING_M: f64 = 0.05;
@@ -42,20 +42,65 @@ pub struct MassFit {
     pub images: usize,
 }
 
-/// The slope of the least squares y = c + m a, any sign.
-fn offset_and_slope_signed(y: &[f64], a: &[f64]) -> f64 {
-    let n = y.len() as f64;
-    let (ya, aa) = (y.iter().sum::<f64>() / n, a.iter().sum::<f64>() / n);
-    let (mut sxy, mut sxx) = (0.0, 0.0);
-    for (yi, ai) in y.iter().zip(a) {
-        sxy += (ai - aa) * (yi - ya);
-        sxx += (ai - aa) * (ai - aa);
+/// The model-form nuisance the frequencies are fitted with: an offset (a global stiffness or
+/// density error) and a trend in f² (a coarser mesh's discretisation error grows as (kh)², so
+/// its frequencies drift from the structure's with frequency). A mass is local: its pattern
+/// over the modes follows φ², not f. The columns 1 and (f/f_max)², orthonormalised.
+struct Nuisance {
+    basis: Vec<Vec<f64>>,
+}
+
+impl Nuisance {
+    fn new(frequencies_hz: &[f64]) -> Self {
+        let fmax = frequencies_hz.iter().copied().fold(1e-300, f64::max);
+        let columns = [
+            vec![1.0; frequencies_hz.len()],
+            frequencies_hz.iter().map(|f| (f / fmax).powi(2)).collect(),
+        ];
+        let mut basis: Vec<Vec<f64>> = Vec::new();
+        for c in columns {
+            let mut v = c;
+            for b in &basis {
+                let d = dot(&v, b);
+                v.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
+            }
+            let norm = dot(&v, &v).sqrt();
+            if norm > 1e-12 {
+                basis.push(v.iter().map(|x| x / norm).collect());
+            }
+        }
+        Self { basis }
     }
-    if sxx > 0.0 {
-        sxy / sxx
-    } else {
-        0.0
+
+    /// Parameters the nuisance spends.
+    fn params(&self) -> f64 {
+        self.basis.len() as f64
     }
+
+    /// `v` with its nuisance part removed.
+    fn residual(&self, v: &[f64]) -> Vec<f64> {
+        let mut r = v.to_vec();
+        for b in &self.basis {
+            let d = dot(&r, b);
+            r.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
+        }
+        r
+    }
+
+    /// Least squares of y = nuisance + m a with m ≥ 0 (or any sign): (m, rss).
+    fn fit(&self, y: &[f64], a: &[f64], non_negative: bool) -> (f64, f64) {
+        let (yr, ar) = (self.residual(y), self.residual(a));
+        let (ay, aa) = (dot(&ar, &yr), dot(&ar, &ar));
+        let mut m = if aa > 0.0 { ay / aa } else { 0.0 };
+        if non_negative {
+            m = m.max(0.0);
+        }
+        (m, dot(&yr, &yr) - 2.0 * m * ay + m * m * aa)
+    }
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 impl MassFit {
@@ -63,20 +108,6 @@ impl MassFit {
     pub fn is_finding(&self) -> bool {
         self.mass_kg > 0.0 && self.bic_gain >= MIN_BIC_GAIN
     }
-}
-
-/// Least squares of y = c + m a with m ≥ 0: (c, m, rss).
-fn offset_and_slope(y: &[f64], a: &[f64]) -> (f64, f64, f64) {
-    let n = y.len() as f64;
-    let (ya, aa) = (y.iter().sum::<f64>() / n, a.iter().sum::<f64>() / n);
-    let m = offset_and_slope_signed(y, a).max(0.0);
-    let c = ya - m * aa;
-    let rss = y
-        .iter()
-        .zip(a)
-        .map(|(yi, ai)| (yi - c - m * ai).powi(2))
-        .sum();
-    (c, m, rss)
 }
 
 /// The candidate points: a grid of `spacing_m` over the plate, symmetric about its centre.
@@ -123,7 +154,13 @@ pub fn fit_point_mass(
             (measured[p.measured].frequency_std_hz / measured[p.measured].frequency_hz).powi(2)
         })
         .sum();
-    let rss_none = offset_and_slope(&y, &vec![0.0; n]).2;
+    let nuisance = Nuisance::new(
+        &pairs
+            .iter()
+            .map(|p| view.basis.frequencies_hz[p.model])
+            .collect::<Vec<_>>(),
+    );
+    let rss_none = nuisance.fit(&y, &vec![0.0; n], true).1;
     let plate = &view.model.plate;
     let points = grid(plate.lx, plate.ly, MASS_GRID_SPACING_M);
     let phi = view.shapes_at(&points)?;
@@ -133,7 +170,7 @@ pub fn fit_point_mass(
                 .iter()
                 .map(|p| -0.5 * phi[p.model][q].powi(2))
                 .collect();
-            let (_, m, rss) = offset_and_slope(&y, &a);
+            let (m, rss) = nuisance.fit(&y, &a, true);
             (q, m, rss)
         })
         .collect();
@@ -142,6 +179,7 @@ pub fn fit_point_mass(
         .min_by(|a, b| a.2.total_cmp(&b.2))
         .copied()
         .expect("the grid is not empty");
+    let k0 = nuisance.params();
     let bic = |rss: f64, k: f64| n as f64 * (rss.max(noise) / n as f64).ln() + k * (n as f64).ln();
     let images: Vec<(usize, f64, f64)> = fits
         .iter()
@@ -168,7 +206,7 @@ pub fn fit_point_mass(
             (f / updated[p.model].damped_frequency_hz).ln()
         })
         .collect();
-    let step = offset_and_slope_signed(&after, &a);
+    let step = nuisance.fit(&after, &a, false).0;
     let mass_kg = (chosen.1 + step).max(0.0);
     Ok(Some(MassFit {
         x_m,
@@ -176,7 +214,7 @@ pub fn fit_point_mass(
         mass_kg,
         rss_none,
         rss: chosen.2,
-        bic_gain: bic(rss_none, 1.0) - bic(chosen.2, 4.0),
+        bic_gain: bic(rss_none, k0) - bic(chosen.2, k0 + 3.0),
         images: images.len(),
     }))
 }
@@ -204,6 +242,17 @@ fn closest_shapes(
     Ok(best.expect("candidates are not empty").0)
 }
 
+/// `model` with a point mass added.
+pub fn add_mass(model: &Model, x_m: f64, y_m: f64, mass_kg: f64) -> Model {
+    let mut m = model.clone();
+    m.point_masses.push(PointMass {
+        x: x_m,
+        y: y_m,
+        mass: mass_kg,
+    });
+    m
+}
+
 /// `view`'s model with a point mass added, solved over the same range.
 pub fn with_mass(
     view: &ModelView,
@@ -211,11 +260,5 @@ pub fn with_mass(
     y_m: f64,
     mass_kg: f64,
 ) -> Result<ModelView, SimError> {
-    let mut model = view.model.clone();
-    model.point_masses.push(PointMass {
-        x: x_m,
-        y: y_m,
-        mass: mass_kg,
-    });
-    ModelView::new(&model, view.fmax_hz)
+    ModelView::new(&add_mass(&view.model, x_m, y_m, mass_kg), view.fmax_hz)
 }
