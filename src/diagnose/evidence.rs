@@ -72,12 +72,48 @@ impl ModelView {
         })
     }
 
+    /// A view of `model`, which differs from this one's in loss only (loss factors, patches
+    /// that change nothing but the loss factor, Rayleigh damping): the undamped modes are the
+    /// same, so they are reused instead of solved again.
+    pub fn with_loss_change(&self, model: &Model) -> Result<Self, SimError> {
+        Ok(Self {
+            model: model.clone(),
+            system: assemble(model)?,
+            basis: self.basis.clone(),
+            count: self.count,
+            fmax_hz: self.fmax_hz,
+        })
+    }
+
     /// The modes below the range read at `positions`: one vector per mode, one value per
     /// position (mass-normalised out-of-plane displacement, m/√kg).
     pub fn shapes_at(&self, positions: &[SensorPosition]) -> Result<Vec<Vec<f64>>, SimError> {
         let sensors = sensors_at(&self.model, positions)?;
         Ok((0..self.count)
             .map(|i| shape_at(&sensors, self.basis.shapes.as_ref(), i))
+            .collect())
+    }
+
+    /// The complex shapes of the damped modes below the range at `positions` (one vector per
+    /// mode, unnormalised): with non-proportional damping their quadrature part shows where
+    /// the loss is.
+    pub fn complex_shapes_at(
+        &self,
+        positions: &[SensorPosition],
+    ) -> Result<Vec<Vec<faer::c64>>, SimError> {
+        let mut system = assemble(&self.model)?;
+        system.sensors = sensors_at(&self.model, positions)?;
+        let reduced = crate::sim::reduced::ReducedModel::build(
+            &system,
+            &self.basis.frequencies_hz,
+            self.basis.shapes.as_ref(),
+            crate::sim::reduced::BasisOptions::default(),
+        )?;
+        Ok(reduced
+            .damped_modes()?
+            .into_iter()
+            .take(self.count)
+            .map(|m| m.2)
             .collect())
     }
 

@@ -230,8 +230,23 @@ fn closest_shapes(
 ) -> Result<(usize, f64, f64), SimError> {
     let mut best: Option<((usize, f64, f64), f64)> = None;
     for &cand in candidates {
-        let poles =
-            with_mass(view, points[cand.0].x_m, points[cand.0].y_m, cand.1)?.poles_at(sensors)?;
+        // Undamped shapes suffice to compare (no damped poles, no basis beyond the range).
+        let model = add_mass(&view.model, points[cand.0].x_m, points[cand.0].y_m, cand.1);
+        let system = crate::sim::assembly::assemble(&model)?;
+        let modes = crate::sim::eigen::lowest_modes(
+            &system,
+            crate::sim::eigen::ModeRequest::BelowHz(view.fmax_hz),
+        )?;
+        let at = crate::sim::assembly::sensors_at(&model, sensors)?;
+        let poles: Vec<super::evidence::ModelPole> = (0..modes.frequencies_hz.len())
+            .map(|i| super::evidence::ModelPole {
+                mode: i + 1,
+                frequency_hz: modes.frequencies_hz[i],
+                damped_frequency_hz: modes.frequencies_hz[i],
+                damping_ratio: 0.0,
+                shape: crate::modal::model_shapes::shape_at(&at, modes.shapes.as_ref(), i),
+            })
+            .collect();
         let e = Evidence::gather(measured, poles);
         let misfit: f64 = e.pairs.iter().map(|p| 1.0 - p.mac).sum::<f64>()
             + (measured.len() - e.pairs.len()) as f64;

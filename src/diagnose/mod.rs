@@ -12,6 +12,7 @@
 pub mod damping;
 pub mod evidence;
 pub mod mass;
+pub mod mirror;
 pub mod nnls;
 pub mod procedure;
 

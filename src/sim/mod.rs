@@ -11,6 +11,7 @@ pub mod mesh;
 pub mod model;
 pub mod poles;
 pub mod reduced;
+pub mod reduced_poles;
 pub mod simulate;
 pub mod stream;
 pub mod system;

@@ -297,12 +297,12 @@ pub struct ReducedModel {
     pub size: usize,
     /// How many columns of the basis are modes (the rest are residual vectors).
     pub n_modes: usize,
-    m_hat: Mat<f64>,
-    k_hat: Vec<Mat<f64>>,
-    factors: Vec<super::system::StiffnessTerm>,
-    rayleigh: (f64, f64),
+    pub(super) m_hat: Mat<f64>,
+    pub(super) k_hat: Vec<Mat<f64>>,
+    pub(super) factors: Vec<super::system::StiffnessTerm>,
+    pub(super) rayleigh: (f64, f64),
     b: Vec<f64>,
-    sv: Mat<f64>,
+    pub(super) sv: Mat<f64>,
     sensor_ids: Vec<String>,
 }
 
@@ -468,7 +468,7 @@ impl ReducedModel {
     }
 
     /// K̂_c = Σ_r (1 + j g_r) K̂_r, the reduced stiffness of a frequency-independent model.
-    fn constant_stiffness(&self) -> Mat<c64> {
+    pub(super) fn constant_stiffness(&self) -> Mat<c64> {
         let m = self.size;
         let mut kc = Mat::<c64>::zeros(m, m);
         for (t, k) in self.factors.iter().zip(&self.k_hat) {
@@ -481,54 +481,6 @@ impl ReducedModel {
             }
         }
         kc
-    }
-
-    /// The damped poles of the model (loss factors and Rayleigh damping; no SLS region), the
-    /// truth against which identified modes are judged when damping is non-proportional (a
-    /// damped patch) or frequency-dependent (Rayleigh): the eigenvalues s of the state-space
-    /// form of s²M̂ + sĈ + K̂_c (Ĉ = αM̂ + βK̂₀) with Im s > 0 and Re s < 0, each as the damped
-    /// frequency Im s / 2π in Hz and the damping ratio −Re s / |s|, by frequency. A free
-    /// response is Σ e^{st}, so these are what a time-domain fit sees. The basis's residual
-    /// vectors add poles far above its modes; keep only those below the modes' range.
-    pub fn damped_poles(&self) -> Result<Vec<(f64, f64)>, FrfError> {
-        if self.factors.iter().any(|t| t.sls.is_some()) {
-            return Err(FrfError::Invalid {
-                what: "damped poles".into(),
-                message:
-                    "expected loss factors and Rayleigh damping only, got a viscoelastic region"
-                        .into(),
-            });
-        }
-        let m = self.size;
-        let (alpha, beta) = self.rayleigh;
-        let mc = Mat::<c64>::from_fn(m, m, |i, j| c64::new(self.m_hat[(i, j)], 0.0));
-        let mut c = Mat::<c64>::from_fn(m, m, |i, j| c64::new(alpha * self.m_hat[(i, j)], 0.0));
-        for k in &self.k_hat {
-            c += Mat::<c64>::from_fn(m, m, |i, j| c64::new(beta * k[(i, j)], 0.0));
-        }
-        let lu = mc.partial_piv_lu();
-        let (mk, mcv) = (lu.solve(self.constant_stiffness()), lu.solve(c));
-        // [q̇; q̈] = [[0, I], [−M̂⁻¹K̂_c, −M̂⁻¹Ĉ]] [q; q̇]
-        let a = Mat::<c64>::from_fn(2 * m, 2 * m, |i, j| match (i < m, j < m) {
-            (true, true) => c64::new(0.0, 0.0),
-            (true, false) => c64::new(if j - m == i { 1.0 } else { 0.0 }, 0.0),
-            (false, true) => -mk[(i - m, j)],
-            (false, false) => -mcv[(i - m, j - m)],
-        });
-        let s = a.eigenvalues().map_err(|e| FrfError::Factorisation {
-            what: "state-space eigenvalues".into(),
-            message: format!("{e:?}"),
-        })?;
-        let mut poles: Vec<(f64, f64)> = s
-            .iter()
-            .filter(|s| s.im > 0.0 && s.re < 0.0)
-            .map(|s| {
-                let s = c64::new(s.re, s.im);
-                (s.im / (2.0 * std::f64::consts::PI), -s.re / s.norm())
-            })
-            .collect();
-        poles.sort_by(|a, b| a.0.total_cmp(&b.0));
-        Ok(poles)
     }
 
     /// The constant-K̂_c path: K̂_c − ω²M̂ with M̂ = L Lᵀ; L⁻¹ K̂_c L⁻ᵀ = X Λ X⁻¹, so
