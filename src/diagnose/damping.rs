@@ -73,11 +73,7 @@ pub struct DampingFit {
 /// pairs. `view` is the model the evidence was gathered against (its element grid gives the
 /// rectangles).
 pub fn fit_damping(evidence: &Evidence, view: &ModelView) -> Result<Vec<DampingFit>, SimError> {
-    let pairs: Vec<_> = evidence
-        .pairs
-        .iter()
-        .filter(|p| p.model < view.count)
-        .collect();
+    let pairs = evidence.pairs_within(view);
     let n = pairs.len();
     if n == 0 {
         return Ok(Vec::new());

@@ -272,6 +272,12 @@ impl Evidence {
         }
     }
 
+    /// The pairs whose model mode lies among `view`'s modes below its range (the rest were
+    /// paired with modes beyond it, which have no strain-energy shares or shapes in `view`).
+    pub fn pairs_within(&self, view: &ModelView) -> Vec<&ModePair> {
+        self.pairs.iter().filter(|p| p.model < view.count).collect()
+    }
+
     /// RMS over the pairs of the damping ratio difference (`None` without pairs).
     pub fn damping_rms(&self) -> Option<f64> {
         rms(self.pairs.iter().map(|p| p.damping_diff))

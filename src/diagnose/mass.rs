@@ -138,11 +138,7 @@ pub fn fit_point_mass(
     view: &ModelView,
     sensors: &[SensorPosition],
 ) -> Result<Option<MassFit>, SimError> {
-    let pairs: Vec<_> = evidence
-        .pairs
-        .iter()
-        .filter(|p| p.model < view.count)
-        .collect();
+    let pairs = evidence.pairs_within(view);
     let n = pairs.len();
     if n < 4 {
         return Ok(None);
