@@ -187,23 +187,8 @@ pub fn fit_point_mass(
     } else {
         best
     };
-    // One Gauss–Newton step on the mass through the re-solved model: the first-order
-    // sensitivity underestimates a mass whose own shape change matters.
     let (x_m, y_m) = (points[chosen.0].x_m, points[chosen.0].y_m);
-    let a: Vec<f64> = pairs
-        .iter()
-        .map(|p| -0.5 * phi[p.model][chosen.0].powi(2))
-        .collect();
-    let updated = with_mass(view, x_m, y_m, chosen.1)?.poles_at(sensors)?;
-    let after: Vec<f64> = pairs
-        .iter()
-        .map(|p| {
-            let f = measured[p.measured].frequency_hz;
-            (f / updated[p.model].damped_frequency_hz).ln()
-        })
-        .collect();
-    let step = nuisance.fit(&after, &a, false).0;
-    let mass_kg = (chosen.1 + step).max(0.0);
+    let mass_kg = refit_mass_at(measured, evidence, view, sensors, (x_m, y_m), chosen.1)?;
     Ok(Some(MassFit {
         x_m,
         y_m,
@@ -213,6 +198,49 @@ pub fn fit_point_mass(
         bic_gain: bic(rss_none, k0) - bic(chosen.2, k0 + 3.0),
         images: images.len(),
     }))
+}
+
+/// One Gauss–Newton step on a mass of `mass_kg` at `point` through the re-solved model
+/// (`view`'s model plus the mass): the first-order sensitivity underestimates a mass whose own
+/// shape change matters. `view` may hold other findings already (a lossy patch moves the
+/// damped frequencies too); `evidence` must pair the same modes. Returns the stepped mass, ≥ 0.
+pub fn refit_mass_at(
+    measured: &[Mode],
+    evidence: &Evidence,
+    view: &ModelView,
+    sensors: &[SensorPosition],
+    point: (f64, f64),
+    mass_kg: f64,
+) -> Result<f64, SimError> {
+    let pairs = evidence.pairs_within(view);
+    if pairs.is_empty() {
+        return Ok(mass_kg);
+    }
+    let nuisance = Nuisance::new(
+        &pairs
+            .iter()
+            .map(|p| view.basis.frequencies_hz[p.model])
+            .collect::<Vec<_>>(),
+    );
+    let at = [SensorPosition {
+        id: "mass".into(),
+        x_m: point.0,
+        y_m: point.1,
+    }];
+    let phi = view.shapes_at(&at)?;
+    let a: Vec<f64> = pairs
+        .iter()
+        .map(|p| -0.5 * phi[p.model][0].powi(2))
+        .collect();
+    let updated = with_mass(view, point.0, point.1, mass_kg)?.poles_at(sensors)?;
+    let after: Vec<f64> = pairs
+        .iter()
+        .map(|p| {
+            let f = measured[p.measured].frequency_hz;
+            (f / updated[p.model].damped_frequency_hz).ln()
+        })
+        .collect();
+    Ok((mass_kg + nuisance.fit(&after, &a, false).0).max(0.0))
 }
 
 /// Among equally good candidate points, the one whose re-solved model's shapes fit the

@@ -181,25 +181,9 @@ pub fn diagnose(
         });
     }
     let mut findings = Vec::new();
-    let mut updated = model.clone();
-    if let Some(m) = mass::fit_point_mass(&modes, &evidence, &view, sensors)? {
-        if m.is_finding() {
-            updated = add_mass(&updated, m.x_m, m.y_m, m.mass_kg);
-            findings.push(Finding {
-                kind: "added_mass".into(),
-                summary: format!(
-                    "A mass of {:.2} kg that the model lacks sits near ({:.2}, {:.2}) m: it lowers \
-                     the modes with an antinode there and leaves those with a nodal line through it.",
-                    m.mass_kg, m.x_m, m.y_m
-                ),
-                region: None,
-                point: Some(Point { x: m.x_m, y: m.y_m }),
-                images: Vec::new(),
-                parameters: BTreeMap::from([("mass_kg".to_string(), m.mass_kg)]),
-                confidence: confidence(m.bic_gain),
-            });
-        }
-    }
+    let mass_fit =
+        mass::fit_point_mass(&modes, &evidence, &view, sensors)?.filter(|m| m.is_finding());
+    let mut loss: Option<DampingHypothesis> = None;
     let fits = damping::fit_damping(&evidence, &view)?;
     let none_bic = fits
         .iter()
@@ -222,7 +206,6 @@ pub fn diagnose(
                 },
                 h => h,
             };
-            updated = damping::apply(&updated, &hypothesis);
             let mut finding = damping_finding(&hypothesis, model, confidence(gain));
             if settled {
                 finding.summary.push_str(
@@ -231,7 +214,41 @@ pub fn diagnose(
                 );
             }
             findings.push(finding);
+            loss = Some(hypothesis);
         }
+    }
+    let mut updated = loss
+        .as_ref()
+        .map_or_else(|| model.clone(), |h| damping::apply(model, h));
+    if let Some(m) = mass_fit {
+        // With a loss found too, the mass is weighed again against the model that has it: a
+        // lossy patch raises the damped frequencies and hid part of the mass's drop.
+        let mass_kg = match &loss {
+            Some(_) => mass::refit_mass_at(
+                &modes,
+                &evidence,
+                &view.with_loss_change(&updated)?,
+                sensors,
+                (m.x_m, m.y_m),
+                m.mass_kg,
+            )?,
+            None => m.mass_kg,
+        };
+        updated = add_mass(&updated, m.x_m, m.y_m, mass_kg);
+        findings.push(Finding {
+            kind: "added_mass".into(),
+            summary: format!(
+                "A mass of {mass_kg:.2} kg that the model lacks sits near ({:.2}, {:.2}) m: it \
+                 lowers the modes with an antinode there and leaves those with a nodal line \
+                 through it.",
+                m.x_m, m.y_m
+            ),
+            region: None,
+            point: Some(Point { x: m.x_m, y: m.y_m }),
+            images: Vec::new(),
+            parameters: BTreeMap::from([("mass_kg".to_string(), mass_kg)]),
+            confidence: confidence(m.bic_gain),
+        });
     }
     let after_view = ModelView::new(&updated, MODEL_RANGE_FACTOR * settings.fmax_hz)?;
     let after = Evidence::gather(&modes, after_view.poles_at(sensors)?);
