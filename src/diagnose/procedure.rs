@@ -89,6 +89,9 @@ pub struct Finding {
     /// The point, for point kinds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub point: Option<Point>,
+    /// The damping law, for `damping_law` (`"rayleigh"`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub law: Option<String>,
     /// Other rectangles the evidence cannot tell from `region` (the plate's mirror images).
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub images: Vec<Region>,
@@ -245,6 +248,7 @@ pub fn diagnose(
             ),
             region: None,
             point: Some(Point { x: m.x_m, y: m.y_m }),
+            law: None,
             images: Vec::new(),
             parameters: BTreeMap::from([("mass_kg".to_string(), mass_kg)]),
             confidence: confidence(m.bic_gain),
@@ -272,6 +276,7 @@ fn damping_finding(h: &DampingHypothesis, model: &Model, confidence: f64) -> Fin
         summary: String::new(),
         region: None,
         point: None,
+        law: None,
         images: Vec::new(),
         parameters: BTreeMap::new(),
         confidence,
@@ -327,6 +332,7 @@ fn damping_finding(h: &DampingHypothesis, model: &Model, confidence: f64) -> Fin
         }
         DampingHypothesis::Rayleigh { alpha, beta } => {
             f.kind = "damping_law".into();
+            f.law = Some("rayleigh".into());
             f.parameters.insert("alpha".into(), *alpha);
             f.parameters.insert("beta".into(), *beta);
             f.summary = format!(
