@@ -10,6 +10,11 @@ use faer::Mat;
 use super::frf::FrfError;
 use super::reduced::ReducedModel;
 
+/// A pole with Re s up to this fraction of |s| above zero is an undamped mode (an undamped
+/// model's poles sit on the imaginary axis to rounding); it is kept with D = 0. The
+/// non-physical root of a hysteretic mode has Im s < 0 and is left out by the sign of Im s.
+const UNDAMPED_TOLERANCE: f64 = 1e-9;
+
 /// One damped mode: damped frequency Im s / 2π in Hz, damping ratio −Re s / |s|, and the
 /// complex displacement at each sensor (unnormalised).
 pub type DampedMode = (f64, f64, Vec<c64>);
@@ -47,7 +52,7 @@ impl ReducedModel {
     /// The damped poles of the model (loss factors and Rayleigh damping; no SLS region), the
     /// truth against which identified modes are judged when damping is non-proportional (a
     /// damped patch) or frequency-dependent (Rayleigh): the eigenvalues s of the state-space
-    /// form with Im s > 0 and Re s < 0, each as the damped frequency Im s / 2π in Hz and the
+    /// form with Im s > 0 and Re s ≤ 0, each as the damped frequency Im s / 2π in Hz and the
     /// damping ratio −Re s / |s|, by frequency. A free response is Σ e^{st}, so these are what
     /// a time-domain fit sees. The basis's residual vectors add poles far above its modes; keep
     /// only those below the modes' range.
@@ -61,10 +66,13 @@ impl ReducedModel {
             })?;
         let mut poles: Vec<(f64, f64)> = s
             .iter()
-            .filter(|s| s.im > 0.0 && s.re < 0.0)
+            .filter(|s| s.im > 0.0 && s.re <= UNDAMPED_TOLERANCE * s.norm())
             .map(|s| {
                 let s = c64::new(s.re, s.im);
-                (s.im / (2.0 * std::f64::consts::PI), -s.re / s.norm())
+                (
+                    s.im / (2.0 * std::f64::consts::PI),
+                    (-s.re / s.norm()).max(0.0),
+                )
             })
             .collect();
         poles.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -84,7 +92,7 @@ impl ReducedModel {
         let (u, s) = (evd.U(), evd.S().column_vector());
         let m = self.size;
         let mut modes: Vec<DampedMode> = (0..s.nrows())
-            .filter(|&k| s[k].im > 0.0 && s[k].re < 0.0)
+            .filter(|&k| s[k].im > 0.0 && s[k].re <= UNDAMPED_TOLERANCE * s[k].norm())
             .map(|k| {
                 let sk = c64::new(s[k].re, s[k].im);
                 let shape = (0..self.sv.nrows())
