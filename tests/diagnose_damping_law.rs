@@ -4,22 +4,15 @@
 //! all. Also the regression that found it: an undamped model's poles sit on the imaginary axis
 //! and were all dropped (no pairs, "expected at least 4 modes paired, got 0").
 
+mod common;
+
 use dampscope::diagnose::procedure::{diagnose, DiagnoseSettings};
-use dampscope::modal::model_shapes::sensor_positions;
-use dampscope::modal::Recordings;
 use dampscope::sim::model::Model;
-use dampscope::source::recording_set::open_recording_set;
 
 /// Measured: α = 9.409 1/s, β = 2.316e-5 s; damping RMS 0.0445 → 0.0019.
 #[test]
 fn a_rayleigh_law_is_named_and_its_coefficients_found() {
-    let mut set = open_recording_set(std::path::Path::new(
-        "tests/data/diagnose/plate-48x72-rayleigh",
-    ))
-    .unwrap();
-    let sensors = sensor_positions(&set.sensors);
-    let mut rec = Recordings::from_source(set.source.as_mut(), 1 << 20).unwrap();
-    rec.add_noise_mean_power(50.0, 1);
+    let (rec, sensors) = common::noisy_set("tests/data/diagnose/plate-48x72-rayleigh", 50.0, 1);
     let text = std::fs::read_to_string("examples/plate-homogeneous.toml")
         .unwrap()
         .replace("loss_factor = 0.05", "loss_factor = 0.0");

@@ -2,27 +2,21 @@
 //! symmetric plate, the complex mode shapes can. The concealed g = 50 % patch (48 × 72 × 2
 //! mesh, 99 off-node sensors, 50 dB on mean power) against the 32 × 48 × 2 model.
 
+mod common;
+
 use dampscope::diagnose::damping::{fit_damping, DampingHypothesis};
 use dampscope::diagnose::evidence::{Evidence, ModelView};
 use dampscope::diagnose::mirror::resolve_images;
 use dampscope::diagnose::procedure::MIN_IMAGE_MARGIN;
-use dampscope::modal::model_shapes::sensor_positions;
-use dampscope::modal::{identify, ModalSettings, Recordings};
+use dampscope::modal::{identify, ModalSettings};
 use dampscope::sim::model::Model;
-use dampscope::source::recording_set::open_recording_set;
 
 /// The region found first is a mirror image (seed 1: x 0.375–0.875, y 0.5–1.125 m); the
 /// quadrature parts of the shapes pick the true patch x 1.125–1.625, y 1.875–2.5 m by a wide
 /// margin (0.83 against 0.30 for the runner-up, measured).
 #[test]
 fn the_complex_shapes_pick_the_true_patch_among_its_images() {
-    let mut set = open_recording_set(std::path::Path::new(
-        "tests/data/modal/plate-48x72-damped-patch",
-    ))
-    .unwrap();
-    let sensors = sensor_positions(&set.sensors);
-    let mut rec = Recordings::from_source(set.source.as_mut(), 1 << 20).unwrap();
-    rec.add_noise_mean_power(50.0, 1);
+    let (rec, sensors) = common::noisy_set("tests/data/modal/plate-48x72-damped-patch", 50.0, 1);
     let modes = identify(&rec, &ModalSettings::new(0.5, 160.0))
         .unwrap()
         .modes;

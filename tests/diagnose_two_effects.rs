@@ -2,11 +2,10 @@
 //! the 48 × 72 × 2 plate (99 off-node sensors, 50 dB on mean power), diagnosed against the
 //! 32 × 48 × 2 homogeneous model: both are named, placed and sized.
 
+mod common;
+
 use dampscope::diagnose::procedure::{diagnose, DiagnoseSettings};
-use dampscope::modal::model_shapes::sensor_positions;
-use dampscope::modal::Recordings;
 use dampscope::sim::model::Model;
-use dampscope::source::recording_set::open_recording_set;
 
 /// Modes below 130 Hz (13 of them: enough to place the patch, and the test stays under a
 /// minute). Measured: the patch's exact rectangle with g 0.467 (true 0.5), 1.84 kg at (0.97,
@@ -15,13 +14,8 @@ use dampscope::source::recording_set::open_recording_set;
 /// patch raises the damped frequencies and hides part of the mass's drop).
 #[test]
 fn a_mass_and_a_damped_patch_are_both_found() {
-    let mut set = open_recording_set(std::path::Path::new(
-        "tests/data/diagnose/plate-48x72-mass-and-patch",
-    ))
-    .unwrap();
-    let sensors = sensor_positions(&set.sensors);
-    let mut rec = Recordings::from_source(set.source.as_mut(), 1 << 20).unwrap();
-    rec.add_noise_mean_power(50.0, 1);
+    let (rec, sensors) =
+        common::noisy_set("tests/data/diagnose/plate-48x72-mass-and-patch", 50.0, 1);
     let model = Model::load(std::path::Path::new("examples/plate-homogeneous.toml")).unwrap();
     let settings = DiagnoseSettings {
         fmax_hz: 130.0,

@@ -101,7 +101,7 @@ impl ModelView {
         &self,
         positions: &[SensorPosition],
     ) -> Result<Vec<Vec<faer::c64>>, SimError> {
-        let mut system = assemble(&self.model)?;
+        let mut system = self.system.clone();
         system.sensors = sensors_at(&self.model, positions)?;
         let reduced = crate::sim::reduced::ReducedModel::build(
             &system,

@@ -118,3 +118,22 @@ pub fn run_dampscope(args: &[&str], stdin: &[u8]) -> std::process::Output {
     writer.join().unwrap();
     out
 }
+
+/// A stored recording set read whole, with white noise added at `snr_db` on mean signal power
+/// (`seed`), and its sensor positions as the model reads them.
+pub fn noisy_set(
+    dir: &str,
+    snr_db: f64,
+    seed: u64,
+) -> (
+    dampscope::modal::Recordings,
+    Vec<dampscope::sim::model::SensorPosition>,
+) {
+    let mut set = dampscope::source::recording_set::open_recording_set(std::path::Path::new(dir))
+        .unwrap_or_else(|e| panic!("{dir}: {e}"));
+    let sensors = dampscope::modal::model_shapes::sensor_positions(&set.sensors);
+    let mut rec = dampscope::modal::Recordings::from_source(set.source.as_mut(), 1 << 20)
+        .unwrap_or_else(|e| panic!("{dir}: {e}"));
+    rec.add_noise_mean_power(snr_db, seed);
+    (rec, sensors)
+}
