@@ -47,9 +47,15 @@ fn the_command_names_places_and_weighs_a_concealed_mass() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("diagnosis.json")).unwrap())
             .unwrap();
-    let findings = json["findings"].as_array().unwrap();
+    let all = json["findings"].as_array().unwrap();
+    // The noise added at 50 dB is reported apart (measured 48.8 dB on the median channel).
+    let noise: Vec<_> = all.iter().filter(|f| f["kind"] == "noise_floor").collect();
+    assert_eq!(noise.len(), 1, "{json}");
+    let snr = noise[0]["snr_db"].as_f64().unwrap();
+    assert!((snr - 50.0).abs() < 3.0, "{json}");
+    let findings: Vec<_> = all.iter().filter(|f| f["kind"] != "noise_floor").collect();
     assert_eq!(findings.len(), 1, "{json}");
-    let f = &findings[0];
+    let f = findings[0];
     assert_eq!(f["kind"], "added_mass");
     assert!(f["summary"].as_str().unwrap().contains("kg"));
     let (x, y) = (
@@ -66,8 +72,11 @@ fn the_command_names_places_and_weighs_a_concealed_mass() {
         let fit = &json["fit"][when];
         assert!(fit["damping_rms"].as_f64().unwrap() >= 0.0, "{json}");
         assert!(fit["frequency_rms_hz"].as_f64().unwrap() >= 0.0, "{json}");
-        assert!(fit.get("frf_error").is_some(), "{json}");
+        assert!(fit["frf_error"].as_f64().unwrap() > 0.0, "{json}");
     }
+    // The mass brings the FRFs closer too (eq. 4.8: 0.117 → 0.084 measured).
+    let frf = |w: &str| json["fit"][w]["frf_error"].as_f64().unwrap();
+    assert!(frf("after") < 0.9 * frf("before"), "{json}");
     let before = json["fit"]["before"]["frequency_rms_hz"].as_f64().unwrap();
     let after = json["fit"]["after"]["frequency_rms_hz"].as_f64().unwrap();
     assert!(after <= 0.5 * before, "{before} → {after}");
@@ -101,7 +110,7 @@ fn a_right_model_gets_no_finding() {
         ..DiagnoseSettings::default()
     };
     let d = diagnose(&rec, &sensors, &model, &settings).unwrap();
-    assert!(d.findings.is_empty(), "{:?}", d.findings);
+    assert!(d.is_clean(), "{:?}", d.findings);
     assert_eq!(d.fit.before, d.fit.after);
     assert_eq!(d.evidence.pairs.len(), 8);
 }

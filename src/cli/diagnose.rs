@@ -10,7 +10,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use crate::diagnose::procedure::{diagnose, DiagnoseSettings, Diagnosis, DEFAULT_DIAGNOSE_FMAX_HZ};
+use crate::diagnose::procedure::{
+    diagnose_with_progress, DiagnoseSettings, DEFAULT_DIAGNOSE_FMAX_HZ,
+};
+use crate::diagnose::report::{why_maps_miss, Diagnosis};
 use crate::modal::model_shapes::sensor_positions;
 use crate::modal::Recordings;
 use crate::sim::model::{Model, SensorSpec};
@@ -39,12 +42,15 @@ pub struct DiagnoseArgs {
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// Print how long each stage took (stderr).
+    #[arg(long)]
+    pub timings: bool,
 }
 
 #[derive(serde::Serialize)]
 struct DiagnosisJson<'a> {
-    findings: &'a [crate::diagnose::procedure::Finding],
-    fit: crate::diagnose::procedure::FitBeforeAfter,
+    findings: &'a [crate::diagnose::report::Finding],
+    fit: crate::diagnose::fit::FitBeforeAfter,
     updated_model: &'a str,
 }
 
@@ -57,6 +63,9 @@ struct ModeRow {
     damping_std: f64,
     model_damping_ratio: f64,
     mac: f64,
+    updated_frequency_hz: Option<f64>,
+    updated_damping_ratio: Option<f64>,
+    updated_mac: Option<f64>,
 }
 
 /// Runs `dampscope diagnose`.
@@ -73,45 +82,31 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         Model::load(&args.model).with_context(|| format!("model {}", args.model.display()))?;
     let settings = DiagnoseSettings {
         fmax_hz: args.fmax,
+        excitation_m: set.excitation.first().map(|e| (e.x_m, e.y_m)),
         ..DiagnoseSettings::default()
     };
-    let d = diagnose(&rec, &sensors, &model, &settings)?;
-    print!("{}", summary(&d));
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let start = std::time::Instant::now();
+    let mut last = (start, String::from("reading"));
+    let mut stages: Vec<(String, f64)> = Vec::new();
+    let d = diagnose_with_progress(&rec, &sensors, &model, &settings, &mut |stage| {
+        let now = std::time::Instant::now();
+        stages.push((std::mem::take(&mut last.1), (now - last.0).as_secs_f64()));
+        last = (now, stage.to_string());
+        bar.set_message(stage.to_string())
+    });
+    stages.push((last.1, last.0.elapsed().as_secs_f64()));
+    bar.finish_and_clear();
+    if args.timings {
+        for (stage, s) in &stages {
+            eprintln!("{s:8.2} s  {stage}");
+        }
+        eprintln!("{:8.2} s  in all", start.elapsed().as_secs_f64());
+    }
+    let d = d?;
+    print!("{}", d.summary());
     write_outputs(args, &d)
-}
-
-/// The findings and the fit, in plain words.
-pub fn summary(d: &Diagnosis) -> String {
-    let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "{} modes identified, {} paired with the model (model form: frequencies {:+.2} % in the median, scatter {:.2} %)",
-        d.modes.len(),
-        d.evidence.pairs.len(),
-        d.evidence
-            .calibration
-            .map_or(0.0, |c| 100.0 * c.log_frequency_ratio.exp_m1()),
-        d.evidence
-            .calibration
-            .map_or(0.0, |c| 100.0 * c.frequency_sigma_rel),
-    );
-    if d.findings.is_empty() {
-        let _ = writeln!(out, "verdict: no missing physics");
-    }
-    for f in &d.findings {
-        let _ = writeln!(
-            out,
-            "finding: {} (confidence {:.2}): {}",
-            f.kind, f.confidence, f.summary
-        );
-    }
-    let (b, a) = (d.fit.before, d.fit.after);
-    let _ = writeln!(
-        out,
-        "fit: damping RMS {:.5} → {:.5}, frequency RMS {:.3} → {:.3} Hz",
-        b.damping_rms, a.damping_rms, b.frequency_rms_hz, a.frequency_rms_hz
-    );
-    out
 }
 
 fn write_outputs(args: &DiagnoseArgs, d: &Diagnosis) -> anyhow::Result<()> {
@@ -146,7 +141,16 @@ fn write_outputs(args: &DiagnoseArgs, d: &Diagnosis) -> anyhow::Result<()> {
         .iter()
         .map(|p| {
             let (m, q) = (&d.modes[p.measured], &d.evidence.model[p.model]);
+            let after = d
+                .evidence_after
+                .pairs
+                .iter()
+                .find(|a| a.measured == p.measured)
+                .map(|a| (&d.evidence_after.model[a.model], a.mac));
             ModeRow {
+                updated_frequency_hz: after.map(|a| a.0.damped_frequency_hz),
+                updated_damping_ratio: after.map(|a| a.0.damping_ratio),
+                updated_mac: after.map(|a| a.1),
                 model_mode: q.mode,
                 frequency_hz: m.frequency_hz,
                 model_frequency_hz: q.damped_frequency_hz,
@@ -158,19 +162,59 @@ fn write_outputs(args: &DiagnoseArgs, d: &Diagnosis) -> anyhow::Result<()> {
         })
         .collect();
     super::write_csv(&out.join("modes.csv"), &rows)?;
-    let report = format!(
-        "# Diagnosis of {} against {}\n\n{}\n\
-         Modal damping maps are dominated by beating and nodal lines; this diagnosis uses each \
-         mode's damping and frequency identified from all sensors at once, paired with the \
-         model's modes by shape, so a region shows in the modes that strain it.\n",
-        args.input.display(),
-        args.model.display(),
-        summary(d)
-            .lines()
-            .map(|l| format!("- {l}\n"))
-            .collect::<String>()
-    );
+    let report = report_markdown(args, d);
     let path = out.join("report.md");
     std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
+}
+
+/// `report.md`: the summary, each finding with why a damping map alone would miss it, and the
+/// families' scores.
+fn report_markdown(args: &DiagnoseArgs, d: &Diagnosis) -> String {
+    let mut out = format!(
+        "# Diagnosis of {} against {}\n\n",
+        args.input.display(),
+        args.model.display()
+    );
+    for l in d.summary().lines() {
+        let _ = writeln!(out, "- {l}");
+    }
+    for f in &d.findings {
+        let _ = writeln!(out, "\n## {}\n\n{}\n", f.kind, f.summary);
+        if let Some(r) = &f.runner_up {
+            let _ = writeln!(
+                out,
+                "The next best explanation, {}, fits worse by ΔBIC = {:.1}{}.\n",
+                r.kind,
+                r.delta_bic,
+                if r.delta_bic >= 10.0 {
+                    " (decisive)"
+                } else {
+                    ": not decisive, keep it in mind"
+                }
+            );
+        }
+        if !f.images.is_empty() {
+            let _ = writeln!(
+                out,
+                "{} mirror image(s) of it fit the evidence as well and could not be ruled out by \
+                 the mode shapes; they are listed in diagnosis.json.\n",
+                f.images.len()
+            );
+        }
+        let why = why_maps_miss(&f.kind);
+        if !why.is_empty() {
+            let _ = writeln!(out, "{why}\n");
+        }
+    }
+    let _ = writeln!(
+        out,
+        "\n## How each kind scored\n\nBIC gain over \"no change\" of each kind's best \
+         explanation (a finding needs ≥ 6 after paying for its parameters and the places \
+         searched):\n\n| round | kind | BIC gain |\n|---|---|---|"
+    );
+    for s in &d.families {
+        let _ = writeln!(out, "| {} | {} | {:.1} |", s.round + 1, s.kind, s.bic_gain);
+    }
+    out
 }

@@ -1,262 +1,154 @@
-//! Loss the model lacks, from the damping evidence: per paired mode r_i = D_measured − D_model
-//! with the identification's uncertainty σ_i. By modal strain energy an extra loss factor Δg
-//! in a region changes mode i's damping ratio by ½ F_i Δg (F_i: the share of the mode's strain
-//! energy in the region), so a region shows in the modes that strain it and not in the others —
-//! whatever a local damping map, dominated by beating and nodal lines, shows. Three families
-//! compete with "no change" by the Bayesian information criterion χ² + k ln n:
+//! Loss the model lacks or gets wrong, from the damping evidence: per paired mode
+//! r_k = D_measured − D_model with the identification's σ_k. Two families:
 //!
-//! - `localized_damping`: any rectangle on the element grid (every one is tried: prefix sums
-//!   of per-element energy shares make each fit O(modes)) with Δg ≥ 0; k = 5;
-//! - a global loss change Δg (any sign, floored at −g so no loss goes negative); k = 1;
-//! - `damping_law`: Rayleigh, r_i = α/(2ω_i) + βω_i/2 with α, β ≥ 0; k = 2.
-//!
-//! A rectangle and its mirror images strain the modes alike on a symmetric plate; all of them
-//! are reported.
+//! - `localized_damping`: extra loss Δg ≥ 0 in a rectangle. By modal strain energy it raises
+//!   mode k's damping ratio by ½ F_k Δg (F_k: the share of the mode's strain energy in the
+//!   rectangle), so a region shows in the modes that strain it and not in the others —
+//!   whatever a local damping map, dominated by beating and nodal lines, shows. Every rectangle
+//!   of the cell grid is tried; five parameters among all rectangles.
+//! - `damping_law`: the plate's damping law replaced by a loss factor g' and Rayleigh damping
+//!   C = αM + βK₀ (all ≥ 0): ΔD_k = ½(g' − g₀)F_plate,k + (α − α₀)/(2ω_k) + (β − β₀)ω_k/2,
+//!   F_plate the strain share of the regions that take the plate's loss. Fitted by
+//!   non-negative least squares, once with g' alone (one parameter: the plate's loss factor is
+//!   another) and once with all three (a frequency-dependent law).
 
 use faer::Mat;
 
-use super::evidence::{Evidence, ModelView};
-use super::{cell_energy_fractions, cell_grid, nnls};
+use super::evidence::ModelView;
+use super::hypothesis::Hypothesis;
+use super::nnls;
+use super::regions::{ModeShares, RectangleTable};
+use super::score::{Candidate, Prediction, Scorer};
 use crate::sim::error::SimError;
-use crate::sim::model::{Model, Patch};
 
-/// A hypothesis is reported when it beats "no change" by this much BIC: "strong" evidence on
-/// Kass and Raftery's scale of 2 ln(Bayes factor).
-pub const MIN_BIC_GAIN: f64 = 6.0;
-/// Smallest σ of a mode's damping ratio (an identification's order spread can be ~0).
-const MIN_SIGMA_D: f64 = 1e-5;
-/// Rectangles whose χ² is within this fraction of the best are its images.
-const IMAGE_CHI2_REL: f64 = 1e-6;
+/// The largest extra loss factor a region is given.
+pub const MAX_REGION_DELTA_G: f64 = 5.0;
 
-/// What the damping evidence says.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub enum DampingHypothesis {
-    /// The model's damping is right.
-    NoChange,
-    /// The loss factor of the whole plate differs by `delta_g`.
-    GlobalLoss {
-        /// Added loss factor.
-        delta_g: f64,
-    },
-    /// Extra loss `delta_g` in a rectangle (and, indistinguishably, in its images).
-    Region {
-        /// [x_min, x_max], m.
-        x_m: [f64; 2],
-        /// [y_min, y_max], m.
-        y_m: [f64; 2],
-        /// Added loss factor in the rectangle.
-        delta_g: f64,
-        /// Rectangles the evidence cannot tell from this one, ([x], [y]) in m.
-        images: Vec<([f64; 2], [f64; 2])>,
-    },
-    /// Rayleigh damping C = αM + βK added.
-    Rayleigh {
-        /// α, 1/s.
-        alpha: f64,
-        /// β, s.
-        beta: f64,
-    },
-}
-
-/// A hypothesis with its fit.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct DampingFit {
-    /// The hypothesis.
-    pub hypothesis: DampingHypothesis,
-    /// Σ ((r_i − predicted_i)/σ_i)².
-    pub chi2: f64,
-    /// χ² + k ln n.
-    pub bic: f64,
-}
-
-/// Every family's best fit to the damping evidence, best (lowest BIC) first; empty without
-/// pairs. `view` is the model the evidence was gathered against (its element grid gives the
-/// rectangles).
-pub fn fit_damping(evidence: &Evidence, view: &ModelView) -> Result<Vec<DampingFit>, SimError> {
-    let pairs = evidence.pairs_within(view);
-    let n = pairs.len();
-    if n == 0 {
-        return Ok(Vec::new());
-    }
-    let r: Vec<f64> = pairs.iter().map(|p| p.damping_diff).collect();
-    let w: Vec<f64> = pairs
-        .iter()
-        .map(|p| 1.0 / p.damping_std.max(MIN_SIGMA_D))
-        .collect();
-    let ln_n = (n as f64).ln();
-    let chi2 = |pred: &dyn Fn(usize) -> f64| -> f64 {
-        (0..n).map(|i| ((r[i] - pred(i)) * w[i]).powi(2)).sum()
+/// The best lossy rectangle for the scorer's pairs, with its images.
+pub fn scan_localized_damping(scorer: &Scorer, shares: &ModeShares) -> Candidate {
+    let modes: Vec<usize> = scorer.pairs.iter().map(|p| p.model).collect();
+    let table = RectangleTable::new(
+        shares.grid.clone(),
+        &ModeShares::rows(&shares.strain, &modes, 0.5),
+    );
+    let n = scorer.n();
+    let best = table.scan(
+        &vec![1.0; n],
+        &scorer.damping,
+        &scorer.damping_weight,
+        (0.0, MAX_REGION_DELTA_G),
+    );
+    let prediction = Prediction {
+        log_frequency: vec![0.0; n],
+        damping: table
+            .sum_over(&best.region)
+            .iter()
+            .map(|s| s * best.amplitude)
+            .collect(),
     };
-    let mut fits = vec![DampingFit {
-        hypothesis: DampingHypothesis::NoChange,
-        chi2: chi2(&|_| 0.0),
-        bic: chi2(&|_| 0.0),
-    }];
-    // Global: ΔD_i = ½Δg.
-    let half = scalar_fit(&r, &w, &vec![0.5; n], f64::NEG_INFINITY);
-    let g0 = view.model.material.loss_factor;
-    let delta_g = half.max(-g0);
-    let c = chi2(&|_| 0.5 * delta_g);
-    fits.push(DampingFit {
-        hypothesis: DampingHypothesis::GlobalLoss { delta_g },
-        chi2: c,
-        bic: c + ln_n,
-    });
-    // Rayleigh: ΔD_i = α/(2ω_i) + βω_i/2, α, β ≥ 0.
-    let omega: Vec<f64> = pairs
-        .iter()
-        .map(|p| 2.0 * std::f64::consts::PI * evidence.model[p.model].frequency_hz)
-        .collect();
-    let a = Mat::from_fn(n, 2, |i, k| {
-        w[i] * if k == 0 {
-            0.5 / omega[i]
-        } else {
-            0.5 * omega[i]
-        }
-    });
-    let b: Vec<f64> = (0..n).map(|i| r[i] * w[i]).collect();
-    let ab = nnls::nnls(&a, &b);
-    let c = chi2(&|i| ab[0] * 0.5 / omega[i] + ab[1] * 0.5 * omega[i]);
-    fits.push(DampingFit {
-        hypothesis: DampingHypothesis::Rayleigh {
-            alpha: ab[0],
-            beta: ab[1],
-        },
-        chi2: c,
-        bic: c + 2.0 * ln_n,
-    });
-    // Regions: every rectangle of the element grid.
-    let model_modes: Vec<usize> = pairs.iter().map(|p| p.model).collect();
-    fits.push(best_region(&view.model, view, &model_modes, &r, &w, ln_n)?);
-    fits.sort_by(|p, q| p.bic.total_cmp(&q.bic));
-    Ok(fits)
+    let hypothesis = |region, delta_g| Hypothesis::LocalizedDamping { region, delta_g };
+    let mut c = scorer.candidate(
+        hypothesis(best.region, best.amplitude),
+        prediction,
+        5.0,
+        shares.grid.rectangle_count(),
+    );
+    c.images = best.images.iter().map(|&(r, g)| hypothesis(r, g)).collect();
+    c
 }
 
-/// argmin_x Σ w²(r − a x)² with x ≥ `floor`.
-fn scalar_fit(r: &[f64], w: &[f64], a: &[f64], floor: f64) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for i in 0..r.len() {
-        num += w[i] * w[i] * a[i] * r[i];
-        den += w[i] * w[i] * a[i] * a[i];
-    }
-    if den > 0.0 {
-        (num / den).max(floor)
-    } else {
-        0.0
-    }
-}
-
-/// The rectangle (on the model's element grid, through the thickness) whose extra loss best
-/// explains `r`, with its images.
-fn best_region(
-    model: &Model,
-    view: &ModelView,
-    modes: &[usize],
-    r: &[f64],
-    w: &[f64],
-    ln_n: f64,
-) -> Result<DampingFit, SimError> {
-    let (nx, ny) = (model.mesh.nx, model.mesh.ny);
-    let (lx, ly) = (model.plate.lx, model.plate.ly);
-    let cells = cell_grid(lx, ly, nx, ny);
-    let basis = crate::sim::eigen::Modes {
-        frequencies_hz: view.basis.frequencies_hz[..view.count].to_vec(),
-        shapes: view.basis.shapes.subcols(0, view.count).to_owned(),
+/// Per scored pair, the share of the mode's strain energy in the regions that take the plate's
+/// loss factor (the plate and the patches without a loss factor of their own).
+fn plate_loss_share(scorer: &Scorer, view: &ModelView) -> Vec<f64> {
+    let sys = &view.system;
+    let inherits = |name: &str| -> bool {
+        name == "plate"
+            || name
+                .strip_prefix("patch ")
+                .and_then(|p| p.parse::<usize>().ok())
+                .and_then(|p| view.model.patches.get(p))
+                .is_some_and(|p| p.loss_factor.is_none() && p.sls.is_none())
     };
-    let f = cell_energy_fractions(model, &basis, &cells)?;
-    // prefix[k][(j, i)]: mode modes[k]'s share in cells [0, i) × [0, j).
-    let prefix: Vec<Mat<f64>> = modes
+    let phi = view.basis.shapes.as_ref();
+    scorer
+        .pairs
         .iter()
-        .map(|&m| {
-            let mut p = Mat::<f64>::zeros(ny + 1, nx + 1);
-            for j in 0..ny {
-                for i in 0..nx {
-                    p[(j + 1, i + 1)] =
-                        f[(m, j * nx + i)] + p[(j, i + 1)] + p[(j + 1, i)] - p[(j, i)];
+        .map(|p| {
+            let (mut inherited, mut total) = (0.0, 0.0);
+            for term in &sys.stiffness_terms {
+                let (sym, val) = term.matrix.parts();
+                let mut e = 0.0;
+                for j in 0..sys.n_free {
+                    for idx in sym.col_range(j) {
+                        e += phi[(sym.row_idx()[idx], p.model)] * val[idx] * phi[(j, p.model)];
+                    }
+                }
+                total += e;
+                if inherits(&term.name) {
+                    inherited += e;
                 }
             }
-            p
+            if total > 0.0 {
+                inherited / total
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// The two damping-law candidates (loss factor alone; loss factor and Rayleigh α, β).
+pub fn fit_damping_laws(scorer: &Scorer, view: &ModelView) -> Result<Vec<Candidate>, SimError> {
+    let n = scorer.n();
+    let share = plate_loss_share(scorer, view);
+    let g0 = view.model.material.loss_factor;
+    let (a0, b0) = view
+        .model
+        .damping
+        .as_ref()
+        .map_or((0.0, 0.0), |d| (d.rayleigh.alpha, d.rayleigh.beta));
+    let omega: Vec<f64> = scorer
+        .model_frequency_hz
+        .iter()
+        .map(|f| 2.0 * std::f64::consts::PI * f)
+        .collect();
+    let w = &scorer.damping_weight;
+    let target: Vec<f64> = (0..n)
+        .map(|k| {
+            scorer.damping[k] + 0.5 * g0 * share[k] + a0 / (2.0 * omega[k]) + 0.5 * b0 * omega[k]
         })
         .collect();
-    let n = r.len();
-    let mut share = vec![0.0; n];
-    let mut found: Vec<(f64, [usize; 4], f64)> = Vec::new();
-    let mut best = f64::INFINITY;
-    for i0 in 0..nx {
-        for i1 in i0 + 1..=nx {
-            for j0 in 0..ny {
-                for j1 in j0 + 1..=ny {
-                    for (k, p) in prefix.iter().enumerate() {
-                        share[k] = 0.5 * (p[(j1, i1)] - p[(j0, i1)] - p[(j1, i0)] + p[(j0, i0)]);
-                    }
-                    let dg = scalar_fit(r, w, &share, 0.0);
-                    let c: f64 = (0..n)
-                        .map(|k| ((r[k] - share[k] * dg) * w[k]).powi(2))
-                        .sum();
-                    if c <= best * (1.0 + IMAGE_CHI2_REL) {
-                        if c < best {
-                            best = c;
-                            found.retain(|e| e.0 <= best * (1.0 + IMAGE_CHI2_REL));
-                        }
-                        found.push((c, [i0, i1, j0, j1], dg));
-                    }
-                }
-            }
-        }
+    let columns = |k: usize| [0.5 * share[k], 0.5 / omega[k], 0.5 * omega[k]];
+    let mut out = Vec::new();
+    for free in [1usize, 3] {
+        let a = Mat::from_fn(n, free, |k, c| w[k] * columns(k)[c]);
+        let b: Vec<f64> = (0..n).map(|k| w[k] * target[k]).collect();
+        let x = nnls::nnls(&a, &b);
+        let (g, alpha, beta) = if free == 1 {
+            (x[0], a0, b0)
+        } else {
+            (x[0], x[1], x[2])
+        };
+        let damping = (0..n)
+            .map(|k| {
+                0.5 * (g - g0) * share[k]
+                    + (alpha - a0) / (2.0 * omega[k])
+                    + 0.5 * (beta - b0) * omega[k]
+            })
+            .collect();
+        out.push(scorer.candidate(
+            Hypothesis::DampingLaw {
+                loss_factor: g,
+                alpha,
+                beta,
+            },
+            Prediction {
+                log_frequency: vec![0.0; n],
+                damping,
+            },
+            free as f64,
+            1.0,
+        ));
     }
-    found.retain(|e| e.0 <= best * (1.0 + IMAGE_CHI2_REL));
-    let span = |e: &[usize; 4]| {
-        (
-            [lx * e[0] as f64 / nx as f64, lx * e[1] as f64 / nx as f64],
-            [ly * e[2] as f64 / ny as f64, ly * e[3] as f64 / ny as f64],
-        )
-    };
-    let (c, first, dg) = found[0];
-    let (x_m, y_m) = span(&first);
-    Ok(DampingFit {
-        hypothesis: DampingHypothesis::Region {
-            x_m,
-            y_m,
-            delta_g: dg,
-            images: found[1..].iter().map(|e| span(&e.1)).collect(),
-        },
-        chi2: c,
-        bic: c + 5.0 * ln_n,
-    })
-}
-
-/// `base` with the damping hypothesis applied (a patch of the base loss plus Δg, appended so it
-/// takes precedence; a global change on the plate; Rayleigh damping added to any present).
-pub fn apply(base: &Model, hypothesis: &DampingHypothesis) -> Model {
-    let mut m = base.clone();
-    match hypothesis {
-        DampingHypothesis::NoChange => {}
-        DampingHypothesis::GlobalLoss { delta_g } => {
-            m.material.loss_factor = (m.material.loss_factor + delta_g).max(0.0);
-        }
-        DampingHypothesis::Region {
-            x_m, y_m, delta_g, ..
-        } => m.patches.push(Patch {
-            x: *x_m,
-            y: *y_m,
-            youngs_modulus: None,
-            poisson: None,
-            density: None,
-            loss_factor: Some(base.material.loss_factor + delta_g),
-            sls: None,
-        }),
-        DampingHypothesis::Rayleigh { alpha, beta } => {
-            let (a0, b0) = m
-                .damping
-                .as_ref()
-                .map_or((0.0, 0.0), |d| (d.rayleigh.alpha, d.rayleigh.beta));
-            m.damping = Some(crate::sim::model::Damping {
-                rayleigh: crate::sim::model::Rayleigh {
-                    alpha: a0 + alpha,
-                    beta: b0 + beta,
-                },
-            });
-        }
-    }
-    m
+    Ok(out)
 }

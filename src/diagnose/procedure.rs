@@ -1,25 +1,44 @@
-//! The diagnosis as one procedure: identify the recordings' modes, pair them with the model's,
-//! fit each family of missing physics that the evidence can show today (`added_mass` from the
-//! frequencies, missing loss from the damping), keep what pays for its parameters, update the
-//! model, and measure the fit before and after. The result serialises as FORMATS.md §5's
-//! `diagnosis.json`.
+//! The diagnosis as one procedure. Identify the recordings' modes; pair them with the model's;
+//! score every family's best explanation ([`super::score`]); keep the best if it beats "no
+//! change" by [`MIN_BIC_GAIN`]; settle its mirror images by the shapes, refine its size
+//! through the re-solved model, apply it, and search again against the updated model (up to
+//! [`MAX_FINDINGS`]). The first finding is then weighed again against the model that has the
+//! second. The fit is measured before and after; the noise floor is reported apart.
 
-use std::collections::BTreeMap;
+use faer::c64;
 
-use super::damping::{self, DampingHypothesis};
 use super::evidence::{Evidence, ModelView};
-use super::mass::{self, add_mass};
-use super::mirror;
-use crate::modal::{identify, ModalError, ModalSettings, Recordings};
+use super::fit::{measures, model_accelerance, FitBeforeAfter, MeasuredFrf};
+use super::hypothesis::Hypothesis;
+use super::mirror::resolve_images;
+use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
+use super::refine::{self, refine, view_of};
+use super::regions::ModeShares;
+use super::report::{Diagnosis, FamilyScore, Finding, RunnerUp};
+use super::score::{Candidate, Prediction, Scorer};
+use super::{boundary, damping, mass, stiffness, viscoelastic};
+use crate::modal::{identify, ModalError, ModalSettings, Mode, Recordings};
 use crate::sim::error::SimError;
 use crate::sim::model::{Model, SensorPosition};
 
 /// Default highest frequency of the modes compared, Hz (about 15 modes of the reference plate:
 /// enough to place a region; the frequency evidence needs fewer).
 pub const DEFAULT_DIAGNOSE_FMAX_HZ: f64 = 160.0;
+/// Default lowest frequency, Hz.
+pub const DEFAULT_DIAGNOSE_FMIN_HZ: f64 = 0.5;
 /// The model's modes are solved to this multiple of the range (a stiffer structure's modes near
 /// the limit still find their partner).
 pub const MODEL_RANGE_FACTOR: f64 = 1.3;
+/// A finding must beat "no change" by this much BIC: "strong" evidence on Kass and Raftery's
+/// scale of 2 ln(Bayes factor) (6–10), on top of the price of its parameters and of the
+/// locations searched; not a value fitted to any test case.
+pub const MIN_BIC_GAIN: f64 = 6.0;
+/// Most findings of missing physics in one diagnosis.
+pub const MAX_FINDINGS: usize = 2;
+/// Least pairs to diagnose at all.
+pub const MIN_PAIRS: usize = 4;
+/// Sensors shown in the FRF overlays.
+const OVERLAY_SENSORS: usize = 3;
 
 /// Settings of [`diagnose`].
 #[derive(Clone, Debug)]
@@ -28,13 +47,17 @@ pub struct DiagnoseSettings {
     pub fmin_hz: f64,
     /// See `fmin_hz`.
     pub fmax_hz: f64,
+    /// Where the recordings were excited (x, y in m: a recording set's `excitation.csv`), for
+    /// the FRF error; `None`: the model's excitation.
+    pub excitation_m: Option<(f64, f64)>,
 }
 
 impl Default for DiagnoseSettings {
     fn default() -> Self {
         Self {
-            fmin_hz: 0.5,
+            fmin_hz: DEFAULT_DIAGNOSE_FMIN_HZ,
             fmax_hz: DEFAULT_DIAGNOSE_FMAX_HZ,
+            excitation_m: None,
         }
     }
 }
@@ -58,113 +81,15 @@ pub enum DiagnoseError {
     },
 }
 
-/// Where a finding sits.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct Region {
-    /// [x_min, x_max], m.
-    pub x: [f64; 2],
-    /// [y_min, y_max], m.
-    pub y: [f64; 2],
-}
-
-/// A point on the plate.
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct Point {
-    /// m.
-    pub x: f64,
-    /// m.
-    pub y: f64,
-}
-
-/// One piece of missing physics (FORMATS.md §5).
-#[derive(Clone, Debug, PartialEq, serde::Serialize)]
-pub struct Finding {
-    /// `localized_damping`, `added_mass`, `damping_law`, `noise_floor`, ….
-    pub kind: String,
-    /// What, where and how much, in plain words.
-    pub summary: String,
-    /// The region, for region kinds.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub region: Option<Region>,
-    /// The point, for point kinds.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub point: Option<Point>,
-    /// The damping law, for `damping_law` (`"rayleigh"`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub law: Option<String>,
-    /// Other rectangles the evidence cannot tell from `region` (the plate's mirror images).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub images: Vec<Region>,
-    /// Fitted parameters by name (`loss_factor`, `mass_kg`, `alpha`, `beta`, `delta_g`, …).
-    pub parameters: BTreeMap<String, f64>,
-    /// Posterior probability against "no change" from the BIC gain, 1/(1 + e^(−gain/2)).
-    pub confidence: f64,
-}
-
-/// The fit of a model to the recordings.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct FitMeasures {
-    /// Mean over bands of the report's eq. 4.8 (not computed yet: `null`).
-    pub frf_error: Option<f64>,
-    /// RMS over the paired modes of the damping ratio difference.
-    pub damping_rms: f64,
-    /// RMS over the paired modes of the damped frequency difference, Hz.
-    pub frequency_rms_hz: f64,
-}
-
-/// Before and after the update.
-#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
-pub struct FitBeforeAfter {
-    /// The model as given.
-    pub before: FitMeasures,
-    /// The updated model.
-    pub after: FitMeasures,
-}
-
-/// Everything [`diagnose`] concludes.
+/// Measured and modelled accelerances at a few sensors, for the figures.
 #[derive(Clone, Debug)]
-pub struct Diagnosis {
-    /// The findings, strongest first (empty: no missing physics).
-    pub findings: Vec<Finding>,
-    /// Fit before and after.
-    pub fit: FitBeforeAfter,
-    /// The model with every finding applied.
-    pub updated_model: Model,
-    /// Modes identified, paired, and the model-form calibration (for the report).
-    pub evidence: Evidence,
-    /// The identified modes.
-    pub modes: Vec<crate::modal::Mode>,
-}
-
-/// A region's mirror images are ruled out when the best candidate's quadrature correlation
-/// beats the runner-up's by this much (0.45–0.53 measured on the damped-patch cases; noise on
-/// a wrong image's correlation is ~0.1).
-pub const MIN_IMAGE_MARGIN: f64 = 0.2;
-
-/// The best score minus the second best (0 with fewer than two).
-fn image_margin(scores: &[f64]) -> f64 {
-    let mut s = scores.to_vec();
-    s.sort_by(|a, b| b.total_cmp(a));
-    if s.len() < 2 {
-        0.0
-    } else {
-        s[0] - s[1]
-    }
-}
-
-/// Least pairs for any hypothesis.
-const MIN_PAIRS: usize = 4;
-
-fn confidence(gain: f64) -> f64 {
-    1.0 / (1.0 + (-0.5 * gain).exp())
-}
-
-fn measures(e: &Evidence) -> FitMeasures {
-    FitMeasures {
-        frf_error: None,
-        damping_rms: e.damping_rms().unwrap_or(f64::NAN),
-        frequency_rms_hz: e.frequency_rms_hz().unwrap_or(f64::NAN),
-    }
+pub struct FrfOverlay {
+    /// Frequencies, Hz.
+    pub frequencies_hz: Vec<f64>,
+    /// Sensor ids shown.
+    pub sensors: Vec<String>,
+    /// Per shown sensor: measured, model before, model after, (m/s²)/N.
+    pub curves: Vec<[Vec<c64>; 3]>,
 }
 
 /// Diagnoses `rec` (its channels at `sensors`) against `model`.
@@ -174,173 +99,302 @@ pub fn diagnose(
     model: &Model,
     settings: &DiagnoseSettings,
 ) -> Result<Diagnosis, DiagnoseError> {
+    diagnose_with_progress(rec, sensors, model, settings, &mut |_| {})
+}
+
+/// Whether a kind may still be found after `found` (one loss explanation at a time; no kind
+/// twice).
+fn allowed(kind: &str, found: &[Hypothesis]) -> bool {
+    let loss = |k: &str| {
+        matches!(
+            k,
+            "localized_damping" | "viscoelastic_damping" | "damping_law"
+        )
+    };
+    found
+        .iter()
+        .all(|h| h.kind() != kind && !(loss(h.kind()) && loss(kind)))
+}
+
+/// Every family's best candidate against `view`.
+fn candidates(
+    measured: &[Mode],
+    scorer: &Scorer,
+    view: &ModelView,
+    sensors: &[SensorPosition],
+    found: &[Hypothesis],
+    edges: &mut boundary::EdgeCache,
+    shares: &ModeShares,
+) -> Result<Vec<Candidate>, SimError> {
+    let mut out = Vec::new();
+    if allowed("added_mass", found) {
+        out.extend(mass::scan_point_mass(scorer, view)?);
+    }
+    if allowed("stiffness_change", found) {
+        out.push(stiffness::scan_stiffness(scorer, shares));
+    }
+    if allowed("localized_damping", found) {
+        out.push(damping::scan_localized_damping(scorer, shares));
+    }
+    if allowed("viscoelastic_damping", found) {
+        out.push(viscoelastic::scan_viscoelastic(
+            scorer,
+            shares,
+            view.model.material.youngs_modulus,
+        ));
+    }
+    if allowed("damping_law", found) {
+        out.extend(damping::fit_damping_laws(scorer, view)?);
+    }
+    if allowed("boundary_compliance", found) {
+        out.extend(boundary::scan_boundary(
+            measured, scorer, view, sensors, edges,
+        )?);
+    }
+    Ok(out)
+}
+
+/// The family of `h` scanned again on `scorer` (for [`refine::refit`]); `None` for the kinds
+/// their scan fits exactly.
+fn rescan(
+    h: &Hypothesis,
+    scorer: &Scorer,
+    view: &ModelView,
+    shares: &ModeShares,
+) -> Result<Option<Candidate>, SimError> {
+    Ok(match h {
+        Hypothesis::AddedMass { .. } => mass::scan_point_mass(scorer, view)?,
+        Hypothesis::StiffnessChange { .. } => Some(stiffness::scan_stiffness(scorer, shares)),
+        Hypothesis::LocalizedDamping { .. } => {
+            Some(damping::scan_localized_damping(scorer, shares))
+        }
+        Hypothesis::ViscoelasticDamping { .. } => Some(viscoelastic::scan_viscoelastic(
+            scorer,
+            shares,
+            view.model.material.youngs_modulus,
+        )),
+        _ => None,
+    })
+}
+
+/// `prediction`, made for `from`'s pairs, on `to`'s pairs (matched by measured mode; a pair
+/// `from` lacks predicts no change).
+fn realign(prediction: &Prediction, from: &Scorer, to: &Scorer) -> Prediction {
+    let mut p = Prediction::none(to.n());
+    for (k, pair) in to.pairs.iter().enumerate() {
+        if let Some(j) = from.pairs.iter().position(|q| q.measured == pair.measured) {
+            p.log_frequency[k] = prediction.log_frequency[j];
+            p.damping[k] = prediction.damping[j];
+        }
+    }
+    p
+}
+
+/// One kept finding: the refined change, the candidate it came from (its prediction is the
+/// sensitivity), and the scorer of its round.
+struct Kept {
+    hypothesis: Hypothesis,
+    candidate: Candidate,
+    scorer: Scorer,
+    finding: Finding,
+}
+
+/// [`diagnose`], telling `progress` what it is doing.
+pub fn diagnose_with_progress(
+    rec: &Recordings,
+    sensors: &[SensorPosition],
+    model: &Model,
+    settings: &DiagnoseSettings,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Diagnosis, DiagnoseError> {
+    progress("identifying the recordings' modes");
     let modes = identify(rec, &ModalSettings::new(settings.fmin_hz, settings.fmax_hz))?.modes;
-    let view = ModelView::new(model, MODEL_RANGE_FACTOR * settings.fmax_hz)?;
-    let evidence = Evidence::gather(&modes, view.poles_at(sensors)?);
+    progress("solving the model");
+    let base = ModelView::new(model, MODEL_RANGE_FACTOR * settings.fmax_hz)?;
+    let evidence = Evidence::gather(&modes, base.poles_at(sensors)?);
     if evidence.pairs.len() < MIN_PAIRS {
         return Err(DiagnoseError::TooFewPairs {
             expected: MIN_PAIRS,
             got: evidence.pairs.len(),
         });
     }
-    let mut findings = Vec::new();
-    let mass_fit =
-        mass::fit_point_mass(&modes, &evidence, &view, sensors)?.filter(|m| m.is_finding());
-    let mut loss: Option<DampingHypothesis> = None;
-    let fits = damping::fit_damping(&evidence, &view)?;
-    let none_bic = fits
-        .iter()
-        .find(|f| f.hypothesis == DampingHypothesis::NoChange)
-        .map_or(f64::INFINITY, |f| f.bic);
-    if let Some(best) = fits.first() {
-        let gain = none_bic - best.bic;
-        if best.hypothesis != DampingHypothesis::NoChange && gain >= damping::MIN_BIC_GAIN {
-            let (hypothesis, scores) =
-                mirror::resolve_images(&modes, &evidence, &view, sensors, &best.hypothesis)?;
-            let settled = image_margin(&scores) >= MIN_IMAGE_MARGIN;
-            let hypothesis = match hypothesis {
-                DampingHypothesis::Region {
-                    x_m, y_m, delta_g, ..
-                } if settled => DampingHypothesis::Region {
-                    x_m,
-                    y_m,
-                    delta_g,
-                    images: Vec::new(),
-                },
-                h => h,
-            };
-            let mut finding = damping_finding(&hypothesis, model, confidence(gain));
-            if settled {
-                finding.summary.push_str(
-                    " Its mirror images, which strain the modes alike, are ruled out by the \
-                     complex mode shapes (the loss puts their out-of-phase part near itself).",
-                );
-            }
-            findings.push(finding);
-            loss = Some(hypothesis);
-        }
-    }
-    let mut updated = loss
-        .as_ref()
-        .map_or_else(|| model.clone(), |h| damping::apply(model, h));
-    if let Some(m) = mass_fit {
-        // With a loss found too, the mass is weighed again against the model that has it: a
-        // lossy patch raises the damped frequencies and hid part of the mass's drop.
-        let mass_kg = match &loss {
-            Some(_) => mass::refit_mass_at(
-                &modes,
-                &evidence,
-                &view.with_loss_change(&updated)?,
-                sensors,
-                (m.x_m, m.y_m),
-                m.mass_kg,
-            )?,
-            None => m.mass_kg,
+    let mut families = Vec::new();
+    let mut kept: Vec<Kept> = Vec::new();
+    let mut edges = boundary::EdgeCache::default();
+    let (mut view, mut ev) = (base.with_loss_change(model)?, evidence.clone());
+    for round in 0..MAX_FINDINGS {
+        let Some(scorer) = Scorer::new(&modes, &ev, &view) else {
+            break;
         };
-        updated = add_mass(&updated, m.x_m, m.y_m, mass_kg);
-        findings.push(Finding {
-            kind: "added_mass".into(),
-            summary: format!(
-                "A mass of {mass_kg:.2} kg that the model lacks sits near ({:.2}, {:.2}) m: it \
-                 lowers the modes with an antinode there and leaves those with a nodal line \
-                 through it.",
-                m.x_m, m.y_m
-            ),
-            region: None,
-            point: Some(Point { x: m.x_m, y: m.y_m }),
-            law: None,
-            images: Vec::new(),
-            parameters: BTreeMap::from([("mass_kg".to_string(), mass_kg)]),
-            confidence: confidence(m.bic_gain),
+        progress(&format!(
+            "round {}: scoring every kind of missing physics",
+            round + 1
+        ));
+        let found: Vec<Hypothesis> = kept.iter().map(|k| k.hypothesis.clone()).collect();
+        let shares = ModeShares::of(&view)?;
+        let cands = candidates(&modes, &scorer, &view, sensors, &found, &mut edges, &shares)?;
+        let none = scorer.none_bic();
+        for c in &cands {
+            families.push(FamilyScore {
+                round,
+                kind: c.hypothesis.kind().into(),
+                bic_gain: none - c.bic,
+            });
+        }
+        let Some(best) = cands.iter().min_by(|a, b| a.bic.total_cmp(&b.bic)).cloned() else {
+            break;
+        };
+        if none - best.bic < MIN_BIC_GAIN {
+            break;
+        }
+        let weights: f64 = std::iter::once(none)
+            .chain(cands.iter().map(|c| c.bic))
+            .map(|b| (-(b - best.bic) / 2.0).exp())
+            .sum();
+        let runner_up = cands
+            .iter()
+            .filter(|c| c.hypothesis.kind() != best.hypothesis.kind())
+            .min_by(|a, b| a.bic.total_cmp(&b.bic))
+            .map(|c| RunnerUp {
+                kind: c.hypothesis.kind().into(),
+                delta_bic: c.bic - best.bic,
+            });
+        progress(&format!(
+            "round {}: {} found; settling images and size",
+            round + 1,
+            best.hypothesis.kind()
+        ));
+        let resolved = resolve_images(&modes, &ev, &view, sensors, &best)?;
+        let mut chosen = best.clone();
+        chosen.hypothesis = resolved.hypothesis.clone();
+        let refined = refine(&modes, sensors, &view, &scorer, &chosen)?;
+        let rescan = |s: &Scorer| rescan(&chosen.hypothesis, s, &view, &shares);
+        let (refined, chosen) = refine::refit(
+            &modes,
+            sensors,
+            &view,
+            &scorer,
+            (refined, chosen.clone()),
+            &rescan,
+        )?;
+        let mut finding = Finding::of(&refined, &resolved.images, &view.model);
+        finding.confidence = 1.0 / weights;
+        finding.bic_gain = Some(none - best.bic);
+        finding.runner_up = runner_up;
+        if !refine::changes_loss_only(&view.model, &refined) {
+            edges.clear();
+        }
+        let next = refined.apply(&view.model);
+        view = view_of(&view, &next, &refined)?;
+        ev = Evidence::gather(&modes, view.poles_at(sensors)?);
+        kept.push(Kept {
+            hypothesis: refined,
+            candidate: chosen,
+            scorer,
+            finding,
         });
     }
-    let after_view = ModelView::new(&updated, MODEL_RANGE_FACTOR * settings.fmax_hz)?;
-    let after = Evidence::gather(&modes, after_view.poles_at(sensors)?);
+    if kept.len() == 2 {
+        progress("weighing the first finding against the model with the second");
+        let (first, second) = (&kept[0], &kept[1]);
+        if let Some(amp) = first.hypothesis.amplitude() {
+            let with_second = second.hypothesis.apply(model);
+            let base2 = view_of(&base, &with_second, &second.hypothesis)?;
+            let ev2 = Evidence::gather(&modes, base2.poles_at(sensors)?);
+            if let Some(scorer2) = Scorer::new(&modes, &ev2, &base2) {
+                let scan_amp = first.candidate.hypothesis.amplitude().unwrap_or(amp);
+                let mut c = first.candidate.clone();
+                let scale = if scan_amp != 0.0 { amp / scan_amp } else { 1.0 };
+                let p = realign(&c.prediction, &first.scorer, &scorer2);
+                c.prediction = Prediction {
+                    log_frequency: p.log_frequency.iter().map(|v| v * scale).collect(),
+                    damping: p.damping.iter().map(|v| v * scale).collect(),
+                };
+                c.hypothesis = first.hypothesis.clone();
+                let reweighed = refine(&modes, sensors, &base2, &scorer2, &c)?;
+                let mut finding = Finding::of(&reweighed, &[], model);
+                let old = &kept[0].finding;
+                finding.images = old.images.clone();
+                finding.confidence = old.confidence;
+                finding.bic_gain = old.bic_gain;
+                finding.runner_up = old.runner_up.clone();
+                let updated = second.hypothesis.apply(&reweighed.apply(model));
+                view = ModelView::new(&updated, base.fmax_hz)?;
+                ev = Evidence::gather(&modes, view.poles_at(sensors)?);
+                kept[0].finding = finding;
+                kept[0].hypothesis = reweighed;
+            }
+        }
+    }
+    let mut findings: Vec<Finding> = kept.iter().map(|k| k.finding.clone()).collect();
     findings.sort_by(|a, b| b.confidence.total_cmp(&a.confidence));
+    let snr = channel_snr_db(rec);
+    if let Some(median) = median_snr_db(&snr).filter(|m| *m < REPORT_BELOW_SNR_DB) {
+        findings.push(Finding::noise_floor(median, snr));
+    }
+    progress("FRFs before and after");
+    let (frf_before, frf_after, frf) =
+        frf_errors(rec, sensors, settings, &modes, &evidence, &base, &view)?;
     Ok(Diagnosis {
         findings,
         fit: FitBeforeAfter {
-            before: measures(&evidence),
-            after: measures(&after),
+            before: measures(&evidence, frf_before),
+            after: measures(&ev, frf_after),
         },
-        updated_model: updated,
+        updated_model: view.model.clone(),
         evidence,
+        evidence_after: ev,
         modes,
+        families,
+        frf,
     })
 }
 
-fn damping_finding(h: &DampingHypothesis, model: &Model, confidence: f64) -> Finding {
-    let g0 = model.material.loss_factor;
-    let mut f = Finding {
-        kind: String::new(),
-        summary: String::new(),
-        region: None,
-        point: None,
-        law: None,
-        images: Vec::new(),
-        parameters: BTreeMap::new(),
-        confidence,
+type FrfErrors = (Option<f64>, Option<f64>, Option<FrfOverlay>);
+
+/// Eq. 4.8 before and after, and the overlays at the driving point, the farthest sensor and
+/// one between.
+fn frf_errors(
+    rec: &Recordings,
+    sensors: &[SensorPosition],
+    settings: &DiagnoseSettings,
+    modes: &[Mode],
+    evidence: &Evidence,
+    before: &ModelView,
+    after: &ModelView,
+) -> Result<FrfErrors, SimError> {
+    let lowest = evidence
+        .pairs
+        .iter()
+        .map(|p| modes[p.measured].frequency_hz)
+        .fold(f64::INFINITY, f64::min);
+    let Some(measured) = MeasuredFrf::of(rec, 0.8 * lowest, settings.fmax_hz) else {
+        return Ok((None, None, None));
     };
-    match h {
-        DampingHypothesis::Region {
-            x_m,
-            y_m,
-            delta_g,
-            images,
-        } => {
-            f.kind = "localized_damping".into();
-            f.region = Some(Region { x: *x_m, y: *y_m });
-            f.images = images
-                .iter()
-                .map(|(x, y)| Region { x: *x, y: *y })
-                .collect();
-            f.parameters.insert("loss_factor".into(), g0 + delta_g);
-            f.parameters.insert("delta_g".into(), *delta_g);
-            f.summary = format!(
-                "The region x {:.2}–{:.2} m, y {:.2}–{:.2} m dissipates more than modelled: loss \
-                 factor {:.3} instead of {g0:.3}. Each mode's extra damping follows its share of \
-                 strain energy there{}.",
-                x_m[0],
-                x_m[1],
-                y_m[0],
-                y_m[1],
-                g0 + delta_g,
-                if images.is_empty() {
-                    String::new()
-                } else {
-                    format!(
-                        "; its {} mirror image(s) strain the modes alike and cannot be ruled out \
-                         from modal damping",
-                        images.len()
-                    )
-                }
-            );
-        }
-        DampingHypothesis::GlobalLoss { delta_g } => {
-            f.kind = "localized_damping".into();
-            f.region = Some(Region {
-                x: [0.0, model.plate.lx],
-                y: [0.0, model.plate.ly],
-            });
-            f.parameters.insert("loss_factor".into(), g0 + delta_g);
-            f.parameters.insert("delta_g".into(), *delta_g);
-            f.summary = format!(
-                "The whole plate's loss factor is {:.4}, not {g0:.4}: every mode's damping differs \
-                 by the same amount.",
-                g0 + delta_g
-            );
-        }
-        DampingHypothesis::Rayleigh { alpha, beta } => {
-            f.kind = "damping_law".into();
-            f.law = Some("rayleigh".into());
-            f.parameters.insert("alpha".into(), *alpha);
-            f.parameters.insert("beta".into(), *beta);
-            f.summary = format!(
-                "The damping follows a Rayleigh law the model lacks: α = {alpha:.3} 1/s, \
-                 β = {beta:.3e} s (extra damping ratio α/(2ω) + βω/2)."
-            );
-        }
-        DampingHypothesis::NoChange => {}
-    }
-    f
+    let ex = &before.model.excitation;
+    let at = settings.excitation_m.unwrap_or((ex.x, ex.y));
+    let f = &measured.frequencies_hz;
+    let h0 = model_accelerance(before, sensors, at, f)?;
+    let h1 = model_accelerance(after, sensors, at, f)?;
+    let mut by_distance: Vec<usize> = (0..sensors.len()).collect();
+    let d = |s: &SensorPosition| (s.x_m - at.0).hypot(s.y_m - at.1);
+    by_distance.sort_by(|&a, &b| d(&sensors[a]).total_cmp(&d(&sensors[b])));
+    let shown: Vec<usize> = if by_distance.len() >= OVERLAY_SENSORS {
+        vec![
+            by_distance[0],
+            by_distance[by_distance.len() / 2],
+            by_distance[by_distance.len() - 1],
+        ]
+    } else {
+        by_distance
+    };
+    let overlay = FrfOverlay {
+        frequencies_hz: f.clone(),
+        sensors: shown.iter().map(|&s| sensors[s].id.clone()).collect(),
+        curves: shown
+            .iter()
+            .map(|&s| [measured.channels[s].clone(), h0[s].clone(), h1[s].clone()])
+            .collect(),
+    };
+    Ok((measured.error(&h0), measured.error(&h1), Some(overlay)))
 }

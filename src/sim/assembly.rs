@@ -345,3 +345,47 @@ fn edge_spring_triplets(
     }
     out
 }
+
+/// Where each dof of `from`'s system lands in `to`'s, for two models on the same mesh that
+/// differ only in which edges are pinned (`None`: constrained in `to`). Internal
+/// (incompatible-mode) dofs follow the nodal ones in both: `n_from` is the size of `from`'s
+/// system (its nodal free dofs plus, for [`Formulation::InternalDofs`], 9 per element). A mode
+/// of a pinned plate is then a valid vector of the plate with that edge released.
+pub fn dof_embedding(
+    from: &Model,
+    to: &Model,
+    n_from: usize,
+) -> Result<Vec<Option<usize>>, SimError> {
+    if (from.mesh.nx, from.mesh.ny, from.mesh.nz) != (to.mesh.nx, to.mesh.ny, to.mesh.nz) {
+        return Err(SimError::InvalidValue {
+            key: "mesh".into(),
+            message: "expected two models on the same mesh".into(),
+        });
+    }
+    let mesh = Mesh::new(from);
+    let (a, b) = (DofMap::new(from, &mesh)?, DofMap::new(to, &mesh)?);
+    let mut out = vec![None; n_from];
+    for (g, slot) in a.free.iter().enumerate() {
+        if let Some(i) = slot {
+            out[*i] = b.free[g];
+        }
+    }
+    for (i, o) in out.iter_mut().enumerate().skip(a.n_free) {
+        *o = Some(i - a.n_free + b.n_free);
+    }
+    Ok(out)
+}
+
+/// The z springs of `k_per_m` N/m² along `edge`'s mid-plane line, over `model`'s free dofs in
+/// a system of size `n` (as [`assemble`] builds the term "edge spring …").
+pub fn edge_spring_matrix(
+    model: &Model,
+    edge: Edge,
+    k_per_m: f64,
+    n: usize,
+) -> Result<SparseColMat<usize, f64>, SimError> {
+    let mesh = Mesh::new(model);
+    let map = DofMap::new(model, &mesh)?;
+    let trip = edge_spring_triplets(&mesh, &map, edge, k_per_m);
+    sparse_from_triplets(n, &trip, &format!("edge spring {}", edge.name()))
+}

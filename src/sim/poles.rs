@@ -23,8 +23,8 @@ pub struct DampedPole {
 
 /// The `count` lowest damped poles of `system`, by frequency, whose undamped modes lie at or
 /// below `highest_mode_hz` (the basis holds the modes below [`POLE_BASIS_FACTOR`] times that).
-/// Errors for a viscoelastic (SLS) region, whose poles depend on frequency, when the
-/// eigensolver fails, and when fewer than `count` poles come out.
+/// A viscoelastic (SLS) region's frequency dependence is exact (internal variables, see
+/// `ReducedModel::damped_poles`). Errors when the eigensolver fails, and when fewer than `count` poles come out.
 pub fn lowest_damped_poles(
     system: &FeSystem,
     count: usize,

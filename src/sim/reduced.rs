@@ -138,7 +138,7 @@ fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
 /// Block form, all GEMMs: twice { C ← C − basis (m_basisᵀ C); SVQB: G = Cᵀ M C = U Λ Uᵀ,
 /// C ← C U Λ^{−1/2} over the eigenvalues above 1e-14 }, the columns scaled to unit M-norm
 /// first so that the threshold is relative to each candidate's size: "twice is enough".
-fn m_orthonormalise(
+pub(crate) fn m_orthonormalise(
     mass: &SparseColMat<usize, f64>,
     basis: MatRef<'_, f64>,
     m_basis: MatRef<'_, f64>,

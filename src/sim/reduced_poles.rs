@@ -19,17 +19,23 @@ const UNDAMPED_TOLERANCE: f64 = 1e-9;
 /// complex displacement at each sensor (unnormalised).
 pub type DampedMode = (f64, f64, Vec<c64>);
 
+/// A root with a damping ratio above this is a relaxation of a viscoelastic region's internal
+/// variable, not a vibration mode.
+const MAX_MODE_DAMPING_RATIO: f64 = 0.9;
+
+/// Whether state eigenvalue `s` is a damped vibration mode (see [`UNDAMPED_TOLERANCE`] and
+/// [`MAX_MODE_DAMPING_RATIO`]).
+fn is_mode(s: c64) -> bool {
+    s.im > 0.0 && s.re <= UNDAMPED_TOLERANCE * s.norm() && -s.re < MAX_MODE_DAMPING_RATIO * s.norm()
+}
+
 impl ReducedModel {
-    /// The state matrix [[0, I], [−M̂⁻¹K̂_c, −M̂⁻¹Ĉ]] (Ĉ = αM̂ + βK̂₀); errors for an SLS region.
+    /// The state matrix of s²M̂ + sĈ + K̂(s) = 0 (Ĉ = αM̂ + βK̂₀). Loss factors make K̂_c a
+    /// constant complex matrix. A viscoelastic (SLS) region r adds, besides its relaxed part
+    /// (1 + jg)K̂_r in K̂_c, the term c_r·sτ_r/(1 + sτ_r)·K̂_r with c_r = (1 + jg)e/e_inf: with an
+    /// internal variable z_r = sτ_r/(1 + sτ_r)·q, i.e. ż_r = q̇ − z_r/τ_r, the problem is linear
+    /// in s. State (q, q̇, z_1, …): [[0, I, 0], [−M̂⁻¹K̂_c, −M̂⁻¹Ĉ, −M̂⁻¹c_rK̂_r], [0, I, −I/τ_r]].
     fn state_matrix(&self) -> Result<Mat<c64>, FrfError> {
-        if self.factors.iter().any(|t| t.sls.is_some()) {
-            return Err(FrfError::Invalid {
-                what: "damped poles".into(),
-                message:
-                    "expected loss factors and Rayleigh damping only, got a viscoelastic region"
-                        .into(),
-            });
-        }
         let m = self.size;
         let (alpha, beta) = self.rayleigh;
         let mc = Mat::<c64>::from_fn(m, m, |i, j| c64::new(self.m_hat[(i, j)], 0.0));
@@ -39,17 +45,42 @@ impl ReducedModel {
         }
         let lu = mc.partial_piv_lu();
         let (mk, mcv) = (lu.solve(self.constant_stiffness()), lu.solve(c));
-        Ok(Mat::<c64>::from_fn(2 * m, 2 * m, |i, j| {
-            match (i < m, j < m) {
-                (true, true) => c64::new(0.0, 0.0),
-                (true, false) => c64::new(if j - m == i { 1.0 } else { 0.0 }, 0.0),
-                (false, true) => -mk[(i - m, j)],
-                (false, false) => -mcv[(i - m, j - m)],
+        let mut relax: Vec<(f64, Mat<c64>)> = Vec::new();
+        for (t, k) in self.factors.iter().zip(&self.k_hat) {
+            let Some(sls) = t.sls else { continue };
+            if !(sls.e > 0.0 && sls.eta > 0.0 && t.reference_modulus_pa > 0.0) {
+                return Err(FrfError::Invalid {
+                    what: format!("viscoelastic region {}", t.name),
+                    message: format!(
+                        "expected e > 0, eta > 0 and a positive reference modulus, got e = {}, \
+                         eta = {}, reference {}",
+                        sls.e, sls.eta, t.reference_modulus_pa
+                    ),
+                });
+            }
+            let coef = c64::new(1.0, t.loss_factor) * (sls.e / t.reference_modulus_pa);
+            let ck = Mat::<c64>::from_fn(m, m, |i, j| coef * k[(i, j)]);
+            relax.push((sls.eta / sls.e, lu.solve(ck)));
+        }
+        let blocks = 2 + relax.len();
+        let zero = c64::new(0.0, 0.0);
+        let one = c64::new(1.0, 0.0);
+        Ok(Mat::<c64>::from_fn(blocks * m, blocks * m, |i, j| {
+            let (bi, ii, bj, jj) = (i / m, i % m, j / m, j % m);
+            match (bi, bj) {
+                (0, 1) if ii == jj => one,
+                (0, _) => zero,
+                (1, 0) => -mk[(ii, jj)],
+                (1, 1) => -mcv[(ii, jj)],
+                (1, b) => -relax[b - 2].1[(ii, jj)],
+                (_, 1) if ii == jj => one,
+                (b, b2) if b == b2 && ii == jj => c64::new(-1.0 / relax[b - 2].0, 0.0),
+                _ => zero,
             }
         }))
     }
 
-    /// The damped poles of the model (loss factors and Rayleigh damping; no SLS region), the
+    /// The damped poles of the model (loss factors, Rayleigh damping, SLS regions), the
     /// truth against which identified modes are judged when damping is non-proportional (a
     /// damped patch) or frequency-dependent (Rayleigh): the eigenvalues s of the state-space
     /// form with Im s > 0 and Re s ≤ 0, each as the damped frequency Im s / 2π in Hz and the
@@ -66,7 +97,7 @@ impl ReducedModel {
             })?;
         let mut poles: Vec<(f64, f64)> = s
             .iter()
-            .filter(|s| s.im > 0.0 && s.re <= UNDAMPED_TOLERANCE * s.norm())
+            .filter(|&&s| is_mode(c64::new(s.re, s.im)))
             .map(|s| {
                 let s = c64::new(s.re, s.im);
                 (
@@ -92,7 +123,7 @@ impl ReducedModel {
         let (u, s) = (evd.U(), evd.S().column_vector());
         let m = self.size;
         let mut modes: Vec<DampedMode> = (0..s.nrows())
-            .filter(|&k| s[k].im > 0.0 && s[k].re <= UNDAMPED_TOLERANCE * s[k].norm())
+            .filter(|&k| is_mode(c64::new(s[k].re, s[k].im)))
             .map(|k| {
                 let sk = c64::new(s[k].re, s[k].im);
                 let shape = (0..self.sv.nrows())

@@ -1,0 +1,189 @@
+//! A finding's size re-fitted through the re-solved model. The scans use first-order
+//! sensitivities (a mass's −½mφ², a region's ½FΔg), which under-estimate effects large enough
+//! to change the mode shapes (a 2 kg mass, a g = 50 % patch). One Gauss–Newton step: the model
+//! with the finding is solved again, its remaining misfit on the same pairs is projected on the
+//! first-order sensitivity, and the size moves by that much (within its physical bounds).
+
+use super::evidence::{Evidence, ModelView};
+use super::hypothesis::{sls_with_peak, Hypothesis};
+use super::score::{Candidate, Scorer};
+use crate::modal::Mode;
+use crate::sim::error::SimError;
+use crate::sim::model::{Model, SensorPosition};
+
+/// The size a refinement moves, and its bounds.
+impl Hypothesis {
+    /// The size the refinement moves (mass, stiffness factor − 1, Δg, peak loss); `None` for
+    /// kinds fitted exactly by their scan (the edge spring, the damping law).
+    pub fn amplitude(&self) -> Option<f64> {
+        match self {
+            Hypothesis::AddedMass { mass_kg, .. } => Some(*mass_kg),
+            Hypothesis::StiffnessChange { youngs_factor, .. } => Some(youngs_factor - 1.0),
+            Hypothesis::LocalizedDamping { delta_g, .. } => Some(*delta_g),
+            Hypothesis::ViscoelasticDamping { peak_loss, .. } => Some(*peak_loss),
+            _ => None,
+        }
+    }
+
+    /// The same change with another size, clamped to what is physical.
+    pub fn with_amplitude(&self, a: f64) -> Hypothesis {
+        let mut h = self.clone();
+        match &mut h {
+            Hypothesis::AddedMass { mass_kg, .. } => *mass_kg = a.max(0.0),
+            Hypothesis::StiffnessChange { youngs_factor, .. } => {
+                let (lo, hi) = super::stiffness::STIFFNESS_FACTOR_RANGE;
+                *youngs_factor = 1.0 + a.clamp(lo, hi);
+            }
+            Hypothesis::LocalizedDamping { delta_g, .. } => {
+                *delta_g = a.clamp(0.0, super::damping::MAX_REGION_DELTA_G)
+            }
+            Hypothesis::ViscoelasticDamping {
+                sls,
+                peak_loss,
+                peak_hz,
+                ..
+            } => {
+                *peak_loss = a.clamp(0.0, super::viscoelastic::MAX_PEAK_LOSS);
+                *sls = sls_with_peak(sls.e_inf, *peak_loss, *peak_hz);
+            }
+            _ => {}
+        }
+        h
+    }
+}
+
+/// Whether `h` applied to `model` leaves its undamped modes alone (a viscoelastic region
+/// without added mass whose relaxed modulus is the plate's counts as such).
+pub fn changes_loss_only(model: &Model, h: &Hypothesis) -> bool {
+    match h {
+        Hypothesis::ViscoelasticDamping {
+            sls,
+            density_factor,
+            ..
+        } => *density_factor == 1.0 && sls.e_inf == model.material.youngs_modulus,
+        other => other.is_loss_only(),
+    }
+}
+
+/// A view of `model`, which is `base`'s model with `h` applied: the undamped modes are reused
+/// when `h` changes the loss only (a viscoelastic region without added mass whose relaxed
+/// modulus is the plate's counts as such), else solved again.
+pub fn view_of(base: &ModelView, model: &Model, h: &Hypothesis) -> Result<ModelView, SimError> {
+    if changes_loss_only(&base.model, h) {
+        base.with_loss_change(model)
+    } else {
+        ModelView::new(model, base.fmax_hz)
+    }
+}
+
+/// `candidate` (scored by `scorer` against `base`) with its size refined by one Gauss–Newton
+/// step through the re-solved model.
+pub fn refine(
+    measured: &[Mode],
+    sensors: &[SensorPosition],
+    base: &ModelView,
+    scorer: &Scorer,
+    candidate: &Candidate,
+) -> Result<Hypothesis, SimError> {
+    let h = &candidate.hypothesis;
+    let Some(amp) = h.amplitude().filter(|a| *a != 0.0) else {
+        return Ok(h.clone());
+    };
+    let model = h.apply(&base.model);
+    let view = view_of(base, &model, h)?;
+    let after = Evidence::gather(measured, view.poles_at(sensors)?);
+    let n = scorer.n();
+    let (mut y, mut r, mut sa, mut sb) = (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
+    for (k, p) in scorer.pairs.iter().enumerate() {
+        if let Some(q) = after.pairs.iter().find(|q| q.measured == p.measured) {
+            y[k] = q.frequency_rel.ln_1p();
+            r[k] = q.damping_diff;
+            sa[k] = candidate.prediction.log_frequency[k] / amp;
+            sb[k] = candidate.prediction.damping[k] / amp;
+        }
+    }
+    let sigma2 = (scorer.rss_frequency(&candidate.prediction.log_frequency) / n as f64).max(1e-300);
+    let (py, pa) = (scorer.nuisance.residual(&y), scorer.nuisance.residual(&sa));
+    let w = &scorer.damping_weight;
+    let mut num: f64 = (0..n).map(|k| pa[k] * py[k]).sum::<f64>() / sigma2;
+    let mut den: f64 = (0..n).map(|k| pa[k] * pa[k]).sum::<f64>() / sigma2;
+    num += (0..n).map(|k| w[k] * w[k] * sb[k] * r[k]).sum::<f64>();
+    den += (0..n).map(|k| w[k] * w[k] * sb[k] * sb[k]).sum::<f64>();
+    if !(den > 0.0 && num.is_finite()) {
+        return Ok(h.clone());
+    }
+    Ok(h.with_amplitude(amp + num / den))
+}
+
+/// Which place of `c` (the candidate or one of its images) lies nearest to `h`'s: a re-scan
+/// must not jump to a mirror image that was ruled out already.
+fn nearest_place(c: &Candidate, h: &Hypothesis) -> Hypothesis {
+    let place = |x: &Hypothesis| -> (f64, f64) {
+        match x {
+            Hypothesis::AddedMass { x_m, y_m, .. } => (*x_m, *y_m),
+            other => other.region().map_or((0.0, 0.0), |r| r.centre()),
+        }
+    };
+    let at = place(h);
+    std::iter::once(&c.hypothesis)
+        .chain(&c.images)
+        .min_by(|a, b| {
+            let (pa, pb) = (place(a), place(b));
+            ((pa.0 - at.0).hypot(pa.1 - at.1)).total_cmp(&(pb.0 - at.0).hypot(pb.1 - at.1))
+        })
+        .cloned()
+        .unwrap_or_else(|| c.hypothesis.clone())
+}
+
+/// Place and size refitted together: the scans are linear in the size at the model's own
+/// sensitivities, and an effect large enough to bend the modes (a region 40 % softer) is then
+/// placed too large and too weak. Each pass solves the model with the current finding, takes
+/// the part of its effect the first-order prediction missed out of the evidence, scans the
+/// family again (`rescan`, on the corrected evidence) and refines the size through the
+/// re-solved model — a fixed-point iteration of the nonlinear fit, [`REFIT_PASSES`] times.
+/// Returns the finding and the candidate whose prediction is its first-order sensitivity.
+pub fn refit(
+    measured: &[Mode],
+    sensors: &[SensorPosition],
+    base: &ModelView,
+    scorer: &Scorer,
+    start: (Hypothesis, Candidate),
+    rescan: &dyn Fn(&Scorer) -> Result<Option<Candidate>, SimError>,
+) -> Result<(Hypothesis, Candidate), SimError> {
+    let (mut h, mut cand) = start;
+    for _ in 0..REFIT_PASSES {
+        let (Some(amp), Some(scan_amp)) = (h.amplitude(), cand.hypothesis.amplitude()) else {
+            break;
+        };
+        if scan_amp == 0.0 {
+            break;
+        }
+        let model = h.apply(&base.model);
+        let view = view_of(base, &model, &h)?;
+        let after = Evidence::gather(measured, view.poles_at(sensors)?);
+        let scale = amp / scan_amp;
+        let mut corrected = scorer.clone();
+        for (k, p) in scorer.pairs.iter().enumerate() {
+            let Some(q) = after.pairs.iter().find(|q| q.measured == p.measured) else {
+                continue;
+            };
+            // exact effect = evidence before − evidence after; nonlinear = exact − linear.
+            let exact_a = scorer.log_frequency[k] - q.frequency_rel.ln_1p();
+            let exact_b = scorer.damping[k] - q.damping_diff;
+            corrected.log_frequency[k] -= exact_a - scale * cand.prediction.log_frequency[k];
+            corrected.damping[k] -= exact_b - scale * cand.prediction.damping[k];
+        }
+        let Some(next) = rescan(&corrected)? else {
+            break;
+        };
+        let mut c = next.clone();
+        c.hypothesis = nearest_place(&next, &h);
+        c.images.clear();
+        h = refine(measured, sensors, base, scorer, &c)?;
+        cand = c;
+    }
+    Ok((h, cand))
+}
+
+/// Passes of [`refit`].
+pub const REFIT_PASSES: usize = 2;

@@ -1,0 +1,184 @@
+//! One score for every hypothesis: how well its predicted changes explain the paired modes'
+//! frequencies and damping, paid for by its parameters and by the places it was free to look.
+//!
+//! For the pairs k = 1…n (measured mode ↔ model mode below the view's range) the evidence is
+//! y_k = ln(f_measured / f_model) and r_k = D_measured − D_model with the identification's σ_k.
+//! A hypothesis predicts a_k (its change of ln f) and b_k (its change of D). Then
+//!
+//! ```text
+//! BIC = n ln(RSS_f / n) + Σ ((r_k − b_k)/σ_k)² + (p + p_nuisance) ln n + ln N_locations
+//! RSS_f = |P⊥(y − a)|²   (the model-form nuisance profiled out, no lower than the
+//!                         identification's own frequency variance)
+//! ```
+//!
+//! The frequency noise is profiled (model form sets it, not the identification), the damping
+//! noise is the identification's. `ln N_locations` is the price of having scanned N places
+//! (points, rectangles, edges): plain BIC under-penalises a search over many locations.
+
+use super::evidence::{Evidence, ModePair, ModelView};
+use super::hypothesis::Hypothesis;
+use super::nuisance::Nuisance;
+use crate::modal::Mode;
+
+/// Smallest σ of a mode's damping ratio (an identification's order spread can be ~0).
+pub const MIN_SIGMA_D: f64 = 1e-5;
+/// Least pairs a hypothesis is scored on.
+pub const MIN_SCORED_PAIRS: usize = 4;
+
+/// What a hypothesis predicts for each scored pair (same order as [`Scorer::pairs`]).
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Prediction {
+    /// Change of ln f per pair.
+    pub log_frequency: Vec<f64>,
+    /// Change of the damping ratio per pair.
+    pub damping: Vec<f64>,
+}
+
+impl Prediction {
+    /// No change on `n` pairs.
+    pub fn none(n: usize) -> Self {
+        Self {
+            log_frequency: vec![0.0; n],
+            damping: vec![0.0; n],
+        }
+    }
+}
+
+/// A hypothesis with its prediction and score.
+#[derive(Clone, Debug)]
+pub struct Candidate {
+    /// The change to the model.
+    pub hypothesis: Hypothesis,
+    /// What it predicts.
+    pub prediction: Prediction,
+    /// Free continuous parameters (the location's coordinates included).
+    pub params: f64,
+    /// How many places were scanned to find it (1: none).
+    pub locations: f64,
+    /// Its [`Scorer::bic`].
+    pub bic: f64,
+    /// The same change elsewhere, explaining the evidence as well (the plate's mirror
+    /// images): settled later by the shapes, or reported.
+    pub images: Vec<Hypothesis>,
+}
+
+/// The evidence in the form every hypothesis is scored on.
+#[derive(Clone, Debug)]
+pub struct Scorer {
+    /// The scored pairs (model mode below the view's range).
+    pub pairs: Vec<ModePair>,
+    /// ln(f_measured / f_model damped) per pair.
+    pub log_frequency: Vec<f64>,
+    /// D_measured − D_model per pair.
+    pub damping: Vec<f64>,
+    /// 1/σ_D per pair.
+    pub damping_weight: Vec<f64>,
+    /// Undamped model frequency per pair, Hz.
+    pub model_frequency_hz: Vec<f64>,
+    /// The model-form nuisance over the pairs.
+    pub nuisance: Nuisance,
+    /// Σ (σ_f/f)² of the identification: the least RSS_f can be.
+    pub rss_floor: f64,
+}
+
+impl Scorer {
+    /// The scorer of `evidence` (gathered from `measured` against `view`); `None` with fewer
+    /// than [`MIN_SCORED_PAIRS`] pairs.
+    pub fn new(measured: &[Mode], evidence: &Evidence, view: &ModelView) -> Option<Self> {
+        let pairs: Vec<ModePair> = evidence.pairs_within(view).into_iter().copied().collect();
+        if pairs.len() < MIN_SCORED_PAIRS {
+            return None;
+        }
+        let model_frequency_hz: Vec<f64> = pairs
+            .iter()
+            .map(|p| view.basis.frequencies_hz[p.model])
+            .collect();
+        let rss_floor = pairs
+            .iter()
+            .map(|p| {
+                let m = &measured[p.measured];
+                (m.frequency_std_hz / m.frequency_hz).powi(2)
+            })
+            .sum::<f64>()
+            .max(1e-300);
+        Some(Self {
+            log_frequency: pairs.iter().map(|p| p.frequency_rel.ln_1p()).collect(),
+            damping: pairs.iter().map(|p| p.damping_diff).collect(),
+            damping_weight: pairs
+                .iter()
+                .map(|p| 1.0 / p.damping_std.max(MIN_SIGMA_D))
+                .collect(),
+            nuisance: Nuisance::new(&model_frequency_hz),
+            model_frequency_hz,
+            rss_floor,
+            pairs,
+        })
+    }
+
+    /// Number of scored pairs.
+    pub fn n(&self) -> usize {
+        self.pairs.len()
+    }
+
+    /// |P⊥(y − a)|², floored at the identification's frequency variance.
+    pub fn rss_frequency(&self, a: &[f64]) -> f64 {
+        let d: Vec<f64> = self
+            .log_frequency
+            .iter()
+            .zip(a)
+            .map(|(y, a)| y - a)
+            .collect();
+        let r = self.nuisance.residual(&d);
+        r.iter().map(|x| x * x).sum::<f64>().max(self.rss_floor)
+    }
+
+    /// Σ ((r_k − b_k)/σ_k)².
+    pub fn chi2_damping(&self, b: &[f64]) -> f64 {
+        (0..self.n())
+            .map(|k| ((self.damping[k] - b[k]) * self.damping_weight[k]).powi(2))
+            .sum()
+    }
+
+    /// The frequency part of the BIC for a residual sum of squares (see the module doc).
+    pub fn frequency_term(&self, rss: f64) -> f64 {
+        let n = self.n() as f64;
+        n * (rss.max(self.rss_floor) / n).ln()
+    }
+
+    /// ln n: what one parameter costs.
+    pub fn ln_n(&self) -> f64 {
+        (self.n() as f64).ln()
+    }
+
+    /// The BIC of a prediction with `params` free parameters found among `locations` places.
+    pub fn bic(&self, prediction: &Prediction, params: f64, locations: f64) -> f64 {
+        self.frequency_term(self.rss_frequency(&prediction.log_frequency))
+            + self.chi2_damping(&prediction.damping)
+            + (params + self.nuisance.params()) * self.ln_n()
+            + locations.max(1.0).ln()
+    }
+
+    /// The BIC of "no change" (the nuisance only).
+    pub fn none_bic(&self) -> f64 {
+        self.bic(&Prediction::none(self.n()), 0.0, 1.0)
+    }
+
+    /// A scored candidate.
+    pub fn candidate(
+        &self,
+        hypothesis: Hypothesis,
+        prediction: Prediction,
+        params: f64,
+        locations: f64,
+    ) -> Candidate {
+        let bic = self.bic(&prediction, params, locations);
+        Candidate {
+            hypothesis,
+            prediction,
+            params,
+            locations,
+            bic,
+            images: Vec::new(),
+        }
+    }
+}
