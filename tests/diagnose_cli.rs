@@ -47,6 +47,7 @@ fn the_command_names_places_and_weighs_a_concealed_mass() {
     let json: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(dir.join("diagnosis.json")).unwrap())
             .unwrap();
+    check_schema(&json);
     let all = json["findings"].as_array().unwrap();
     // The noise added at 50 dB is reported apart (measured 48.8 dB on the median channel).
     let noise: Vec<_> = all.iter().filter(|f| f["kind"] == "noise_floor").collect();
@@ -113,4 +114,74 @@ fn a_right_model_gets_no_finding() {
     assert!(d.is_clean(), "{:?}", d.findings);
     assert_eq!(d.fit.before, d.fit.after);
     assert_eq!(d.evidence.pairs.len(), 8);
+}
+
+/// `diagnosis.json` against docs/diagnosis.schema.json (the FORMATS.md §5 contract as a JSON
+/// Schema); panics with the validator's message.
+fn check_schema(json: &serde_json::Value) {
+    if let Err(e) = validate(json) {
+        panic!("diagnosis.json does not follow the schema: {e}\n{json:#}");
+    }
+}
+
+fn validate(json: &serde_json::Value) -> Result<(), String> {
+    let schema: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string("docs/diagnosis.schema.json").expect("the schema is in docs/"),
+    )
+    .expect("the schema is JSON");
+    let url = schema["$id"].as_str().unwrap().to_string();
+    let mut schemas = boon::Schemas::new();
+    let mut compiler = boon::Compiler::new();
+    compiler.add_resource(&url, schema).unwrap();
+    let index = compiler
+        .compile(&url, &mut schemas)
+        .map_err(|e| format!("schema: {e}"))?;
+    schemas.validate(json, index).map_err(|e| e.to_string())
+}
+
+/// The schema check itself can fail: a NaN fit (written as null), an unknown kind, a region
+/// kind without its region and a confidence above 1 are each refused.
+#[test]
+fn the_schema_refuses_broken_diagnoses() {
+    let good = serde_json::json!({
+        "findings": [{
+            "kind": "localized_damping", "summary": "s", "region": { "x": [0.1, 0.5], "y": [1.0, 1.5] },
+            "parameters": { "loss_factor": 0.1 }, "confidence": 0.9
+        }],
+        "fit": {
+            "before": { "frf_error": null, "damping_rms": 0.01, "frequency_rms_hz": 0.2 },
+            "after": { "frf_error": 0.1, "damping_rms": 0.001, "frequency_rms_hz": 0.2 }
+        },
+        "updated_model": "updated-model.toml"
+    });
+    validate(&good).unwrap();
+    let broken = |path: &[&str], value: serde_json::Value| {
+        let mut j = good.clone();
+        let mut at = &mut j;
+        for p in &path[..path.len() - 1] {
+            at = match p.parse::<usize>() {
+                Ok(i) => &mut at[i],
+                Err(_) => &mut at[*p],
+            };
+        }
+        at[path[path.len() - 1]] = value;
+        j
+    };
+    for (path, value) in [
+        (vec!["fit", "after", "damping_rms"], serde_json::Value::Null),
+        (
+            vec!["findings", "0", "kind"],
+            serde_json::json!("cosmic_rays"),
+        ),
+        (vec!["findings", "0", "confidence"], serde_json::json!(1.5)),
+    ] {
+        let j = broken(&path, value);
+        assert!(validate(&j).is_err(), "{path:?} passed: {j}");
+    }
+    let mut no_region = good.clone();
+    no_region["findings"][0]
+        .as_object_mut()
+        .unwrap()
+        .remove("region");
+    assert!(validate(&no_region).is_err());
 }

@@ -9,9 +9,10 @@ mod common;
 use dampscope::diagnose::damping::scan_localized_damping;
 use dampscope::diagnose::evidence::{Evidence, ModelView};
 use dampscope::diagnose::hypothesis::Hypothesis;
+use dampscope::diagnose::nuisance::discretisation_pattern;
 use dampscope::diagnose::procedure::MIN_BIC_GAIN;
 use dampscope::diagnose::regions::ModeShares;
-use dampscope::diagnose::score::{Candidate, Scorer};
+use dampscope::diagnose::score::{Candidate, Scorer, DEFAULT_MODEL_FORM_SIGMA};
 use dampscope::modal::{identify, ModalSettings};
 use dampscope::sim::model::Model;
 
@@ -28,7 +29,14 @@ fn scan(set: &str, seed: u64, view: &ModelView, shares: &ModeShares) -> (Candida
         .unwrap()
         .modes;
     let evidence = Evidence::gather(&modes, view.poles_at(&sensors).unwrap());
-    let scorer = Scorer::new(&modes, &evidence, view).unwrap();
+    let scorer = Scorer::new(
+        &modes,
+        &evidence,
+        view,
+        &discretisation_pattern(view, &sensors).unwrap(),
+        DEFAULT_MODEL_FORM_SIGMA,
+    )
+    .unwrap();
     let c = scan_localized_damping(&scorer, shares);
     let gain = scorer.none_bic() - c.bic;
     eprintln!("{set} seed {seed}: {:?}, gain {gain:.1}", c.hypothesis);

@@ -14,6 +14,7 @@ use crate::diagnose::procedure::{
     diagnose_with_progress, DiagnoseSettings, DEFAULT_DIAGNOSE_FMAX_HZ,
 };
 use crate::diagnose::report::{why_maps_miss, Diagnosis};
+use crate::diagnose::score::DEFAULT_MODEL_FORM_SIGMA;
 use crate::modal::model_shapes::sensor_positions;
 use crate::modal::Recordings;
 use crate::sim::model::{Model, SensorSpec};
@@ -42,6 +43,10 @@ pub struct DiagnoseArgs {
     /// Output directory (created if missing).
     #[arg(long, value_name = "DIR")]
     pub out: PathBuf,
+    /// How far a correct model's frequencies may differ from the structure's, mode by mode,
+    /// beyond a calibrated offset and trends, % (another mesh or plate theory: ~0.1 %).
+    #[arg(long, default_value_t = 100.0 * DEFAULT_MODEL_FORM_SIGMA, value_name = "PERCENT")]
+    pub model_form_percent: f64,
     /// Print how long each stage took (stderr).
     #[arg(long)]
     pub timings: bool,
@@ -83,6 +88,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     let settings = DiagnoseSettings {
         fmax_hz: args.fmax,
         excitation_m: set.excitation.first().map(|e| (e.x_m, e.y_m)),
+        model_form_sigma: 0.01 * args.model_form_percent,
         ..DiagnoseSettings::default()
     };
     let bar = indicatif::ProgressBar::new_spinner();
@@ -162,6 +168,7 @@ fn write_outputs(args: &DiagnoseArgs, d: &Diagnosis) -> anyhow::Result<()> {
         })
         .collect();
     super::write_csv(&out.join("modes.csv"), &rows)?;
+    write_figures(out, &updated, d)?;
     let report = report_markdown(args, d);
     let path = out.join("report.md");
     std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
@@ -217,4 +224,26 @@ fn report_markdown(args: &DiagnoseArgs, d: &Diagnosis) -> String {
         let _ = writeln!(out, "| {} | {} | {:.1} |", s.round + 1, s.kind, s.bic_gain);
     }
     out
+}
+
+/// The figures: mode errors before/after, the shape residual map with the findings drawn, and
+/// FRF overlays (when the FRF error could be computed).
+fn write_figures(out: &std::path::Path, model: &Model, d: &Diagnosis) -> anyhow::Result<()> {
+    crate::plot::mode_errors(d, &out.join("mode-errors.png"))?;
+    let residual = d.shape_residual();
+    if d.sensor_positions.len() == residual.len() && !residual.is_empty() {
+        let at: Vec<(f64, f64)> = d.sensor_positions.iter().map(|s| (s.x_m, s.y_m)).collect();
+        crate::plot::residual_map(
+            "Shape residual against the model as given (larger: worse), findings in green",
+            (model.plate.lx, model.plate.ly),
+            &at,
+            &residual,
+            &d.findings,
+            &out.join("residual-map.png"),
+        )?;
+    }
+    if d.frf.is_some() {
+        crate::plot::frf_overlay(d, &out.join("frf-overlay.png"))?;
+    }
+    Ok(())
 }

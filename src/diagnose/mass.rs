@@ -84,3 +84,23 @@ pub fn scan_point_mass(scorer: &Scorer, view: &ModelView) -> Result<Option<Candi
     c.images = images;
     Ok(Some(c))
 }
+
+/// The first-order prediction of an `added_mass` hypothesis on the scorer's pairs.
+pub fn predict(h: &Hypothesis, scorer: &Scorer, view: &ModelView) -> Result<Prediction, SimError> {
+    let Hypothesis::AddedMass { x_m, y_m, mass_kg } = *h else {
+        return Ok(Prediction::none(scorer.n()));
+    };
+    let phi = view.shapes_at(&[SensorPosition {
+        id: "mass".into(),
+        x_m,
+        y_m,
+    }])?;
+    Ok(Prediction {
+        log_frequency: scorer
+            .pairs
+            .iter()
+            .map(|p| -0.5 * mass_kg * phi[p.model][0].powi(2))
+            .collect(),
+        damping: vec![0.0; scorer.n()],
+    })
+}

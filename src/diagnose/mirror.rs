@@ -66,7 +66,7 @@ fn correlation(a: &[f64], b: &[f64]) -> f64 {
 /// How well the damped modes of `view` match the measured shapes' quadrature parts: the
 /// correlation per paired mode, weighted by how complex the model's mode is (a nearly real
 /// mode says nothing about where the loss is).
-fn quadrature_match(
+pub(crate) fn quadrature_match(
     measured: &[Mode],
     evidence: &Evidence,
     view: &ModelView,
@@ -120,19 +120,34 @@ fn shape_misfit(
 /// The outcome of [`resolve_images`].
 #[derive(Clone, Debug)]
 pub struct Resolved {
-    /// The image that fits the shapes best.
+    /// The place that fits the shapes best.
     pub hypothesis: Hypothesis,
-    /// The others (empty when settled).
+    /// The others that could not be ruled out (empty when settled).
     pub images: Vec<Hypothesis>,
-    /// Score per candidate, in the order (candidate, its images…): quadrature correlation for
-    /// a loss (higher is better), shape misfit for a mass or stiffness (lower is better).
+    /// Score per candidate, in the order (candidate, its images…, its alternatives…):
+    /// quadrature correlation for a loss (higher is better), shape misfit for a mass or
+    /// stiffness (lower is better).
     pub scores: Vec<f64>,
-    /// Whether the winner beat the runner-up by the kind's margin.
+    /// Whether the winner beat every candidate apart from it (overlapping it by less than
+    /// half) by the kind's margin.
     pub settled: bool,
 }
 
-/// The candidate's image (itself included) that the shapes support, against `base` (the view
-/// the candidate was scored on; `evidence` gathered against it).
+/// Where a candidate sits, for telling images apart: its region, or a small square around its
+/// point.
+fn place(h: &Hypothesis) -> Option<super::regions::Region> {
+    h.region().or(match h {
+        Hypothesis::AddedMass { x_m, y_m, .. } => Some(super::regions::Region {
+            x: [x_m - 0.05, x_m + 0.05],
+            y: [y_m - 0.05, y_m + 0.05],
+        }),
+        _ => None,
+    })
+}
+
+/// The candidate's image or alternative (itself included) that the shapes support, against
+/// `base` (the view the candidate was scored on; `evidence` gathered against it). For a loss
+/// the alternatives (other sizes the damping could not tell apart) compete too.
 pub fn resolve_images(
     measured: &[Mode],
     evidence: &Evidence,
@@ -140,9 +155,16 @@ pub fn resolve_images(
     sensors: &[SensorPosition],
     candidate: &Candidate,
 ) -> Result<Resolved, SimError> {
-    let all: Vec<Hypothesis> = std::iter::once(candidate.hypothesis.clone())
+    let loss = matches!(
+        candidate.hypothesis,
+        Hypothesis::LocalizedDamping { .. } | Hypothesis::ViscoelasticDamping { .. }
+    );
+    let mut all: Vec<Hypothesis> = std::iter::once(candidate.hypothesis.clone())
         .chain(candidate.images.iter().cloned())
         .collect();
+    if loss {
+        all.extend(candidate.alternatives.iter().cloned());
+    }
     if all.len() == 1 {
         return Ok(Resolved {
             hypothesis: all[0].clone(),
@@ -151,10 +173,6 @@ pub fn resolve_images(
             settled: true,
         });
     }
-    let loss = matches!(
-        candidate.hypothesis,
-        Hypothesis::LocalizedDamping { .. } | Hypothesis::ViscoelasticDamping { .. }
-    );
     let mut scores = parallel_map(all.iter().collect(), |h: &Hypothesis| {
         let model = h.apply(&base.model);
         if loss {
@@ -163,26 +181,29 @@ pub fn resolve_images(
             Ok(-shape_misfit(measured, &model, base.fmax_hz, sensors)?)
         }
     })?;
-    let mut order: Vec<usize> = (0..all.len()).collect();
-    order.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
-    let margin = scores[order[0]] - scores[order[1]];
-    let settled = margin
-        >= if loss {
-            MIN_QUADRATURE_MARGIN
-        } else {
-            MIN_SHAPE_MISFIT_MARGIN
-        };
+    let best = (0..all.len())
+        .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
+        .expect("candidates are not empty");
+    let margin = if loss {
+        MIN_QUADRATURE_MARGIN
+    } else {
+        MIN_SHAPE_MISFIT_MARGIN
+    };
+    let at = place(&all[best]);
+    let apart = |k: usize| match (&at, place(&all[k])) {
+        (Some(a), Some(b)) => a.overlap(&b) < 0.5,
+        _ => true,
+    };
+    let rivals: Vec<usize> = (0..all.len())
+        .filter(|&k| k != best && apart(k) && scores[best] - scores[k] < margin)
+        .collect();
     if !loss {
         scores.iter_mut().for_each(|s| *s = -*s);
     }
     Ok(Resolved {
-        hypothesis: all[order[0]].clone(),
-        images: if settled {
-            Vec::new()
-        } else {
-            order[1..].iter().map(|&k| all[k].clone()).collect()
-        },
+        hypothesis: all[best].clone(),
+        settled: rivals.is_empty(),
+        images: rivals.iter().map(|&k| all[k].clone()).collect(),
         scores,
-        settled,
     })
 }

@@ -5,17 +5,16 @@
 //! [`MAX_FINDINGS`]). The first finding is then weighed again against the model that has the
 //! second. The fit is measured before and after; the noise floor is reported apart.
 
-use faer::c64;
-
 use super::evidence::{Evidence, ModelView};
-use super::fit::{measures, model_accelerance, FitBeforeAfter, MeasuredFrf};
+use super::fit::{compare_frfs, measures, FitBeforeAfter};
 use super::hypothesis::Hypothesis;
 use super::mirror::resolve_images;
 use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
+use super::nuisance::discretisation_pattern;
 use super::refine::{self, refine, view_of};
 use super::regions::ModeShares;
 use super::report::{Diagnosis, FamilyScore, Finding, RunnerUp};
-use super::score::{Candidate, Prediction, Scorer};
+use super::score::{Candidate, Prediction, Scorer, DEFAULT_MODEL_FORM_SIGMA};
 use super::{boundary, damping, mass, stiffness, viscoelastic};
 use crate::modal::{identify, ModalError, ModalSettings, Mode, Recordings};
 use crate::sim::error::SimError;
@@ -37,8 +36,6 @@ pub const MIN_BIC_GAIN: f64 = 6.0;
 pub const MAX_FINDINGS: usize = 2;
 /// Least pairs to diagnose at all.
 pub const MIN_PAIRS: usize = 4;
-/// Sensors shown in the FRF overlays.
-const OVERLAY_SENSORS: usize = 3;
 
 /// Settings of [`diagnose`].
 #[derive(Clone, Debug)]
@@ -50,6 +47,9 @@ pub struct DiagnoseSettings {
     /// Where the recordings were excited (x, y in m: a recording set's `excitation.csv`), for
     /// the FRF error; `None`: the model's excitation.
     pub excitation_m: Option<(f64, f64)>,
+    /// How far a correct model's ln f may differ from the structure's, mode by mode, beyond
+    /// the calibrated offset and trends (see [`super::score`]).
+    pub model_form_sigma: f64,
 }
 
 impl Default for DiagnoseSettings {
@@ -58,6 +58,7 @@ impl Default for DiagnoseSettings {
             fmin_hz: DEFAULT_DIAGNOSE_FMIN_HZ,
             fmax_hz: DEFAULT_DIAGNOSE_FMAX_HZ,
             excitation_m: None,
+            model_form_sigma: DEFAULT_MODEL_FORM_SIGMA,
         }
     }
 }
@@ -79,17 +80,6 @@ pub enum DiagnoseError {
         /// Found.
         got: usize,
     },
-}
-
-/// Measured and modelled accelerances at a few sensors, for the figures.
-#[derive(Clone, Debug)]
-pub struct FrfOverlay {
-    /// Frequencies, Hz.
-    pub frequencies_hz: Vec<f64>,
-    /// Sensor ids shown.
-    pub sensors: Vec<String>,
-    /// Per shown sensor: measured, model before, model after, (m/s²)/N.
-    pub curves: Vec<[Vec<c64>; 3]>,
 }
 
 /// Diagnoses `rec` (its channels at `sensors`) against `model`.
@@ -177,17 +167,21 @@ fn rescan(
     })
 }
 
-/// `prediction`, made for `from`'s pairs, on `to`'s pairs (matched by measured mode; a pair
-/// `from` lacks predicts no change).
-fn realign(prediction: &Prediction, from: &Scorer, to: &Scorer) -> Prediction {
-    let mut p = Prediction::none(to.n());
-    for (k, pair) in to.pairs.iter().enumerate() {
-        if let Some(j) = from.pairs.iter().position(|q| q.measured == pair.measured) {
-            p.log_frequency[k] = prediction.log_frequency[j];
-            p.damping[k] = prediction.damping[j];
-        }
-    }
-    p
+/// The first-order prediction of `h` on `scorer`'s pairs (for a place the shapes chose among
+/// a candidate's images and alternatives); `None` for kinds whose candidate already holds it.
+fn first_order(
+    h: &Hypothesis,
+    scorer: &Scorer,
+    view: &ModelView,
+    shares: &ModeShares,
+) -> Result<Option<Prediction>, SimError> {
+    Ok(match h {
+        Hypothesis::AddedMass { .. } => Some(mass::predict(h, scorer, view)?),
+        Hypothesis::StiffnessChange { .. } => Some(stiffness::predict(h, scorer, shares)),
+        Hypothesis::LocalizedDamping { .. } => Some(damping::predict(h, scorer, shares)),
+        Hypothesis::ViscoelasticDamping { .. } => Some(viscoelastic::predict(h, scorer, shares)),
+        _ => None,
+    })
 }
 
 /// One kept finding: the refined change, the candidate it came from (its prediction is the
@@ -223,7 +217,9 @@ pub fn diagnose_with_progress(
     let mut edges = boundary::EdgeCache::default();
     let (mut view, mut ev) = (base.with_loss_change(model)?, evidence.clone());
     for round in 0..MAX_FINDINGS {
-        let Some(scorer) = Scorer::new(&modes, &ev, &view) else {
+        let pattern = discretisation_pattern(&view, sensors)?;
+        let Some(scorer) = Scorer::new(&modes, &ev, &view, &pattern, settings.model_form_sigma)
+        else {
             break;
         };
         progress(&format!(
@@ -241,12 +237,62 @@ pub fn diagnose_with_progress(
                 bic_gain: none - c.bic,
             });
         }
-        let Some(best) = cands.iter().min_by(|a, b| a.bic.total_cmp(&b.bic)).cloned() else {
-            break;
-        };
-        if none - best.bic < MIN_BIC_GAIN {
+        // What the kept findings' sizes left over competes with new physics.
+        let resize = kept
+            .iter()
+            .enumerate()
+            .filter_map(|(i, k)| {
+                refine::resize_candidate(&k.hypothesis, &k.candidate, &k.scorer, &scorer)
+                    .map(|c| (i, c))
+            })
+            .min_by(|a, b| a.1.bic.total_cmp(&b.1.bic));
+        let best = cands.iter().min_by(|a, b| a.bic.total_cmp(&b.bic)).cloned();
+        // A new finding must pay against "no change" and, when a kept finding's size could
+        // explain what is left, on top of that resized finding too.
+        let pays = best.as_ref().is_some_and(|b| {
+            none - b.bic >= MIN_BIC_GAIN
+                && resize.as_ref().is_none_or(|(_, r)| {
+                    let joint = Prediction {
+                        log_frequency: (0..scorer.n())
+                            .map(|k| r.prediction.log_frequency[k] + b.prediction.log_frequency[k])
+                            .collect(),
+                        damping: (0..scorer.n())
+                            .map(|k| r.prediction.damping[k] + b.prediction.damping[k])
+                            .collect(),
+                    };
+                    r.bic - scorer.bic(&joint, r.params + b.params, b.locations) >= MIN_BIC_GAIN
+                })
+        });
+        if !pays {
+            if let Some((i, r)) = resize.filter(|r| none - r.1.bic >= MIN_BIC_GAIN) {
+                progress(&format!(
+                    "round {}: resizing the {}",
+                    round + 1,
+                    r.hypothesis.kind()
+                ));
+                families.push(FamilyScore {
+                    round,
+                    kind: format!("{} (resized)", r.hypothesis.kind()),
+                    bic_gain: none - r.bic,
+                });
+                kept[i].hypothesis = r.hypothesis.clone();
+                let old = kept[i].finding.clone();
+                kept[i].finding = Finding {
+                    images: old.images.clone(),
+                    confidence: old.confidence,
+                    bic_gain: old.bic_gain,
+                    runner_up: old.runner_up.clone(),
+                    ..Finding::of(&r.hypothesis, &[], model)
+                };
+                let updated = kept
+                    .iter()
+                    .fold(model.clone(), |m, k| k.hypothesis.apply(&m));
+                view = ModelView::new(&updated, base.fmax_hz)?;
+                ev = Evidence::gather(&modes, view.poles_at(sensors)?);
+            }
             break;
         }
+        let best = best.expect("a paying candidate exists");
         let weights: f64 = std::iter::once(none)
             .chain(cands.iter().map(|c| c.bic))
             .map(|b| (-(b - best.bic) / 2.0).exp())
@@ -267,16 +313,25 @@ pub fn diagnose_with_progress(
         let resolved = resolve_images(&modes, &ev, &view, sensors, &best)?;
         let mut chosen = best.clone();
         chosen.hypothesis = resolved.hypothesis.clone();
+        chosen.prediction =
+            first_order(&chosen.hypothesis, &scorer, &view, &shares)?.unwrap_or(chosen.prediction);
         let refined = refine(&modes, sensors, &view, &scorer, &chosen)?;
-        let rescan = |s: &Scorer| rescan(&chosen.hypothesis, s, &view, &shares);
-        let (refined, chosen) = refine::refit(
-            &modes,
-            sensors,
-            &view,
-            &scorer,
-            (refined, chosen.clone()),
-            &rescan,
-        )?;
+        // Place and size refitted together for a stiffness change, whose first-order scan
+        // places a strong change too large and too weak (a mass is a point, a loss region's
+        // place was chosen by the shapes among what the damping allows: they stay).
+        let (refined, chosen) = if !matches!(refined, Hypothesis::StiffnessChange { .. }) {
+            (refined, chosen)
+        } else {
+            let rescan = |s: &Scorer| rescan(&chosen.hypothesis, s, &view, &shares);
+            refine::refit(
+                &modes,
+                sensors,
+                &view,
+                &scorer,
+                (refined, chosen.clone()),
+                &rescan,
+            )?
+        };
         let mut finding = Finding::of(&refined, &resolved.images, &view.model);
         finding.confidence = 1.0 / weights;
         finding.bic_gain = Some(none - best.bic);
@@ -301,15 +356,14 @@ pub fn diagnose_with_progress(
             let with_second = second.hypothesis.apply(model);
             let base2 = view_of(&base, &with_second, &second.hypothesis)?;
             let ev2 = Evidence::gather(&modes, base2.poles_at(sensors)?);
-            if let Some(scorer2) = Scorer::new(&modes, &ev2, &base2) {
+            let pattern = discretisation_pattern(&base2, sensors)?;
+            if let Some(scorer2) =
+                Scorer::new(&modes, &ev2, &base2, &pattern, settings.model_form_sigma)
+            {
                 let scan_amp = first.candidate.hypothesis.amplitude().unwrap_or(amp);
                 let mut c = first.candidate.clone();
                 let scale = if scan_amp != 0.0 { amp / scan_amp } else { 1.0 };
-                let p = realign(&c.prediction, &first.scorer, &scorer2);
-                c.prediction = Prediction {
-                    log_frequency: p.log_frequency.iter().map(|v| v * scale).collect(),
-                    damping: p.damping.iter().map(|v| v * scale).collect(),
-                };
+                c.prediction = c.prediction.realigned(&first.scorer, &scorer2, scale);
                 c.hypothesis = first.hypothesis.clone();
                 let reweighed = refine(&modes, sensors, &base2, &scorer2, &c)?;
                 let mut finding = Finding::of(&reweighed, &[], model);
@@ -333,8 +387,21 @@ pub fn diagnose_with_progress(
         findings.push(Finding::noise_floor(median, snr));
     }
     progress("FRFs before and after");
-    let (frf_before, frf_after, frf) =
-        frf_errors(rec, sensors, settings, &modes, &evidence, &base, &view)?;
+    let lowest = evidence
+        .pairs
+        .iter()
+        .map(|p| modes[p.measured].frequency_hz)
+        .fold(f64::INFINITY, f64::min);
+    let ex = &base.model.excitation;
+    let frf = compare_frfs(
+        rec,
+        sensors,
+        settings.excitation_m.unwrap_or((ex.x, ex.y)),
+        (0.8 * lowest, settings.fmax_hz),
+        &base,
+        &view,
+    )?;
+    let (frf_before, frf_after) = frf.as_ref().map_or((None, None), |c| (c.before, c.after));
     Ok(Diagnosis {
         findings,
         fit: FitBeforeAfter {
@@ -346,55 +413,7 @@ pub fn diagnose_with_progress(
         evidence_after: ev,
         modes,
         families,
-        frf,
+        frf: frf.and_then(|c| c.overlay),
+        sensor_positions: sensors.to_vec(),
     })
-}
-
-type FrfErrors = (Option<f64>, Option<f64>, Option<FrfOverlay>);
-
-/// Eq. 4.8 before and after, and the overlays at the driving point, the farthest sensor and
-/// one between.
-fn frf_errors(
-    rec: &Recordings,
-    sensors: &[SensorPosition],
-    settings: &DiagnoseSettings,
-    modes: &[Mode],
-    evidence: &Evidence,
-    before: &ModelView,
-    after: &ModelView,
-) -> Result<FrfErrors, SimError> {
-    let lowest = evidence
-        .pairs
-        .iter()
-        .map(|p| modes[p.measured].frequency_hz)
-        .fold(f64::INFINITY, f64::min);
-    let Some(measured) = MeasuredFrf::of(rec, 0.8 * lowest, settings.fmax_hz) else {
-        return Ok((None, None, None));
-    };
-    let ex = &before.model.excitation;
-    let at = settings.excitation_m.unwrap_or((ex.x, ex.y));
-    let f = &measured.frequencies_hz;
-    let h0 = model_accelerance(before, sensors, at, f)?;
-    let h1 = model_accelerance(after, sensors, at, f)?;
-    let mut by_distance: Vec<usize> = (0..sensors.len()).collect();
-    let d = |s: &SensorPosition| (s.x_m - at.0).hypot(s.y_m - at.1);
-    by_distance.sort_by(|&a, &b| d(&sensors[a]).total_cmp(&d(&sensors[b])));
-    let shown: Vec<usize> = if by_distance.len() >= OVERLAY_SENSORS {
-        vec![
-            by_distance[0],
-            by_distance[by_distance.len() / 2],
-            by_distance[by_distance.len() - 1],
-        ]
-    } else {
-        by_distance
-    };
-    let overlay = FrfOverlay {
-        frequencies_hz: f.clone(),
-        sensors: shown.iter().map(|&s| sensors[s].id.clone()).collect(),
-        curves: shown
-            .iter()
-            .map(|&s| [measured.channels[s].clone(), h0[s].clone(), h1[s].clone()])
-            .collect(),
-    };
-    Ok((measured.error(&h0), measured.error(&h1), Some(overlay)))
 }

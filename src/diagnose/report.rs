@@ -302,13 +302,49 @@ pub struct Diagnosis {
     /// Each family's best per round.
     pub families: Vec<FamilyScore>,
     /// FRF overlays at a few sensors (for the figures), when the FRF error was computed.
-    pub frf: Option<super::procedure::FrfOverlay>,
+    pub frf: Option<super::fit::FrfOverlay>,
+    /// The recordings' sensor positions (channel order).
+    pub sensor_positions: Vec<crate::sim::model::SensorPosition>,
 }
 
 impl Diagnosis {
     /// Whether no missing physics was found (findings empty or only `noise_floor`).
     pub fn is_clean(&self) -> bool {
         self.findings.iter().all(|f| f.kind == "noise_floor")
+    }
+
+    /// The shape residual per sensor against the model as given: for each paired mode, both
+    /// shapes normalised, the model's scaled by the best complex factor, the squared difference
+    /// at the sensor; the square root of its mean over the pairs. Where a finding bends the
+    /// modes (a mass, a soft edge) or makes them complex (a lossy region) the residual grows.
+    pub fn shape_residual(&self) -> Vec<f64> {
+        let n = self.modes.first().map_or(0, |m| m.shape.len());
+        let mut acc = vec![0.0; n];
+        let mut count = 0usize;
+        for p in &self.evidence.pairs {
+            let phi = &self.modes[p.measured].shape;
+            let psi = &self.evidence.model[p.model].shape;
+            if phi.len() != n || psi.len() != n {
+                continue;
+            }
+            let nphi = phi.iter().map(|z| z.norm_sqr()).sum::<f64>().sqrt();
+            let npsi = psi.iter().map(|v| v * v).sum::<f64>().sqrt();
+            if nphi == 0.0 || npsi == 0.0 {
+                continue;
+            }
+            let alpha = phi
+                .iter()
+                .zip(psi)
+                .fold(faer::c64::new(0.0, 0.0), |a, (z, v)| a + z * (v / npsi))
+                / nphi;
+            for s in 0..n {
+                acc[s] += (phi[s] / nphi - alpha * (psi[s] / npsi)).norm_sqr();
+            }
+            count += 1;
+        }
+        acc.iter()
+            .map(|v| (v / count.max(1) as f64).sqrt())
+            .collect()
     }
 
     /// The findings and the fit in a few lines.
@@ -343,8 +379,13 @@ impl Diagnosis {
         };
         let _ = writeln!(
             out,
-            "fit: damping RMS {:.5} → {:.5}, frequency RMS {:.3} → {:.3} Hz{frf}",
-            b.damping_rms, a.damping_rms, b.frequency_rms_hz, a.frequency_rms_hz
+            "fit: damping RMS {:.5} → {:.5}, frequency RMS {:.3} → {:.3} Hz (calibrated {:.3} → {:.3} Hz){frf}",
+            b.damping_rms,
+            a.damping_rms,
+            b.frequency_rms_hz,
+            a.frequency_rms_hz,
+            b.frequency_rms_calibrated_hz,
+            a.frequency_rms_calibrated_hz
         );
         out
     }

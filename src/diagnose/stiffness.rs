@@ -59,3 +59,27 @@ pub fn scan_stiffness(scorer: &Scorer, shares: &ModeShares) -> Candidate {
     c.images = best.images.iter().map(|&(r, k)| hypothesis(r, k)).collect();
     c
 }
+
+/// The first-order prediction of a `stiffness_change` hypothesis on the scorer's pairs.
+pub fn predict(h: &Hypothesis, scorer: &Scorer, shares: &ModeShares) -> Prediction {
+    let Hypothesis::StiffnessChange {
+        region,
+        youngs_factor,
+    } = *h
+    else {
+        return Prediction::none(scorer.n());
+    };
+    let modes: Vec<usize> = scorer.pairs.iter().map(|p| p.model).collect();
+    let table = RectangleTable::new(
+        shares.grid.clone(),
+        &ModeShares::rows(&shares.strain, &modes, 0.5),
+    );
+    Prediction {
+        log_frequency: table
+            .sum_over(&region)
+            .iter()
+            .map(|s| s * (youngs_factor - 1.0))
+            .collect(),
+        damping: vec![0.0; scorer.n()],
+    }
+}

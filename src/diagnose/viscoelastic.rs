@@ -63,7 +63,16 @@ pub fn scan_viscoelastic(
             best = Some((r, peak));
         }
     }
-    let (scan, peak_hz) = best.expect("the peak grid is not empty");
+    let (_, peak_hz) = best.expect("the peak grid is not empty");
+    // Again at the best peak, keeping the alternatives the damping cannot tell apart.
+    let scale: Vec<f64> = f.iter().map(|&fk| bell(fk, peak_hz)).collect();
+    let scan = strain.scan_with(
+        &scale,
+        &scorer.damping,
+        &scorer.damping_weight,
+        (0.0, MAX_PEAK_LOSS),
+        Some(super::damping::ALTERNATIVE_CHI2),
+    );
     let locations = shares.grid.rectangle_count() * PEAK_GRID_POINTS as f64;
     let build = |region, peak_loss: f64| -> (Hypothesis, Prediction, f64) {
         let s = strain.sum_over(&region);
@@ -114,5 +123,40 @@ pub fn scan_viscoelastic(
         .iter()
         .map(|&(r, eta)| build(r, eta).0)
         .collect();
+    c.alternatives = scan
+        .alternatives
+        .iter()
+        .map(|&(r, eta)| build(r, eta).0)
+        .collect();
     c
+}
+
+/// The first-order prediction of a `viscoelastic_damping` hypothesis on the scorer's pairs:
+/// its loss and stiffening from the region's strain shares, its added mass from the kinetic.
+pub fn predict(h: &Hypothesis, scorer: &Scorer, shares: &ModeShares) -> Prediction {
+    let Hypothesis::ViscoelasticDamping {
+        region,
+        sls,
+        density_factor,
+        ..
+    } = *h
+    else {
+        return Prediction::none(scorer.n());
+    };
+    let modes: Vec<usize> = scorer.pairs.iter().map(|p| p.model).collect();
+    let table = |m| RectangleTable::new(shares.grid.clone(), &ModeShares::rows(m, &modes, 0.5));
+    let (s, g) = (
+        table(&shares.strain).sum_over(&region),
+        table(&shares.kinetic).sum_over(&region),
+    );
+    let f = &scorer.model_frequency_hz;
+    Prediction {
+        log_frequency: (0..f.len())
+            .map(|k| {
+                let (re, _) = sls.modulus(2.0 * std::f64::consts::PI * f[k]);
+                s[k] * (re / sls.e_inf - 1.0) - g[k] * (density_factor - 1.0)
+            })
+            .collect(),
+        damping: (0..f.len()).map(|k| s[k] * sls_loss(&sls, f[k])).collect(),
+    }
 }

@@ -2,10 +2,12 @@
 //! (`assets/DejaVuSans.ttf`, Bitstream Vera licence in `assets/DejaVuSans.LICENSE`), so no
 //! system fonts are needed.
 
+mod diagnose;
 mod map;
 mod modal;
 mod resynth;
 
+pub use diagnose::{frf_overlay, mode_errors, residual_map};
 pub use map::damping_map;
 pub use modal::{mode_shape, stabilisation_diagram};
 pub use resynth::resynthesis_figure;
