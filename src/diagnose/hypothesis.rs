@@ -83,6 +83,16 @@ impl Hypothesis {
         }
     }
 
+    /// This hypothesis with a viscoelastic layer's density factor set to `factor` (other kinds
+    /// unchanged).
+    pub fn with_density_factor(&self, factor: f64) -> Hypothesis {
+        let mut h = self.clone();
+        if let Hypothesis::ViscoelasticDamping { density_factor, .. } = &mut h {
+            *density_factor = factor;
+        }
+        h
+    }
+
     /// The region, for region kinds.
     pub fn region(&self) -> Option<Region> {
         match self {

@@ -376,7 +376,12 @@ impl RectangleTable {
                             }
                         }
                         let tol = IMAGE_MISFIT_REL * best.max(1e-300);
-                        if misfit <= best + tol {
+                        // A rectangle held at zero change is "no change", not an image: when
+                        // no change fits (the data ask for the opposite sign) every rectangle
+                        // would tie, and 10⁶ images were carried on (a soft edge's lower
+                        // damping made the loss scans take 30 s each).
+                        let no_change = x == 0.0 && !found.is_empty();
+                        if misfit <= best + tol && !no_change {
                             if misfit < best {
                                 best = misfit;
                                 let keep = best + IMAGE_MISFIT_REL * best.max(1e-300);
@@ -399,7 +404,7 @@ impl RectangleTable {
         if let Some(tol) = tolerance {
             let mut near: Vec<(f64, [usize; 4], f64)> = classes
                 .into_values()
-                .filter(|c| c.0 <= misfit + tol)
+                .filter(|c| c.0 <= misfit + tol && c.2 != 0.0)
                 .collect();
             near.sort_by(|a, b| a.0.total_cmp(&b.0));
             let mut taken: Vec<Region> = std::iter::once(self.grid.span(first))
@@ -479,6 +484,24 @@ mod tests {
         );
         assert!(close(&table.sum_over(&grid.span(truth)), &oracle(truth)));
         assert_eq!(grid.rectangle_count(), 15.0 * 21.0);
+    }
+
+    /// Data that ask for a negative change where only positive ones are allowed: the best is
+    /// "no change" and no rectangle is its image (all 315 tied at zero amplitude, and every
+    /// one was carried on as an image: the soft-edge set's 30 s loss scans).
+    #[test]
+    fn regression_no_change_has_no_images() {
+        let grid = CellGrid {
+            x_m: (0..=5).map(|i| 0.4 * i as f64).collect(),
+            y_m: (0..=6).map(|j| 0.5 * j as f64).collect(),
+        };
+        let values = Mat::from_fn(4, 30, |k, c| 1.0 + ((k + c) as f64).sin().powi(2));
+        let table = RectangleTable::new(grid, &values);
+        let target = vec![-1.0; 4];
+        let r = table.scan_with(&[1.0; 4], &target, &[1.0; 4], (0.0, 10.0), Some(1e9));
+        assert_eq!(r.amplitude, 0.0);
+        assert!(r.images.is_empty(), "{} images", r.images.len());
+        assert!(r.alternatives.is_empty(), "{:?}", r.alternatives);
     }
 
     #[test]

@@ -137,3 +137,39 @@ pub fn noisy_set(
     rec.add_noise_mean_power(snr_db, seed);
     (rec, sensors)
 }
+
+/// `diagnose` of recording set `dir` (noise added at `snr_db` on mean power, `seed`) against
+/// the nominal model examples/plate-homogeneous.toml, modes to `fmax_hz`.
+pub fn diagnose_set(
+    dir: &str,
+    snr_db: f64,
+    seed: u64,
+    fmax_hz: f64,
+) -> dampscope::diagnose::report::Diagnosis {
+    use dampscope::diagnose::procedure::{diagnose, DiagnoseSettings};
+    let (rec, sensors) = noisy_set(dir, snr_db, seed);
+    let model =
+        dampscope::sim::model::Model::load(std::path::Path::new("examples/plate-homogeneous.toml"))
+            .unwrap();
+    let settings = DiagnoseSettings {
+        fmax_hz,
+        ..DiagnoseSettings::default()
+    };
+    diagnose(&rec, &sensors, &model, &settings).unwrap_or_else(|e| panic!("{dir}: {e}"))
+}
+
+/// The findings of `d` that name physics (not the noise floor).
+pub fn physics(
+    d: &dampscope::diagnose::report::Diagnosis,
+) -> Vec<&dampscope::diagnose::report::Finding> {
+    d.findings
+        .iter()
+        .filter(|f| f.kind != "noise_floor")
+        .collect()
+}
+
+/// Distance from the centre of `f`'s region to (x, y), m.
+pub fn region_offset_m(f: &dampscope::diagnose::report::Finding, x: f64, y: f64) -> f64 {
+    let r = f.region.as_ref().expect("a region");
+    (0.5 * (r.x[0] + r.x[1]) - x).hypot(0.5 * (r.y[0] + r.y[1]) - y)
+}
