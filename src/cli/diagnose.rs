@@ -201,12 +201,29 @@ fn report_markdown(args: &DiagnoseArgs, d: &Diagnosis) -> String {
                 }
             );
         }
-        if !f.images.is_empty() {
+        let (sizes, mirrors): (Vec<_>, Vec<_>) =
+            f.images.iter().partition(|i| !i.parameters.is_empty());
+        if !mirrors.is_empty() {
             let _ = writeln!(
                 out,
                 "{} mirror image(s) of it fit the evidence as well and could not be ruled out by \
                  the mode shapes; they are listed in diagnosis.json.\n",
-                f.images.len()
+                mirrors.len()
+            );
+        }
+        for i in sizes {
+            let size = ["loss_factor", "peak_loss_factor", "youngs_modulus"]
+                .iter()
+                .find_map(|k| i.parameters.get(*k).map(|v| (k, v)));
+            let (Some(r), Some((name, value))) = (&i.region, size) else {
+                continue;
+            };
+            let _ = writeln!(
+                out,
+                "Another size fits the damping about as well (its area trades against its loss; \
+                 the mode shapes chose the one above): x {:.2}–{:.2} m, y {:.2}–{:.2} m with \
+                 {name} {value:.3}.\n",
+                r.x[0], r.x[1], r.y[0], r.y[1]
             );
         }
         let why = why_maps_miss(&f.kind);

@@ -52,7 +52,7 @@ pub enum Command {
     Map(map::MapArgs),
     /// Re-synthesise the model's FRF from the global damping per band and compare (eq. 4.8).
     Resynth(resynth::ResynthArgs),
-    /// Locate where the model's damping differs from the recordings, update it, show the fit.
+    /// Name the physics the model lacks (mass, stiffness, edge support, loss, damping law, noise), where and how much; update the model, show the fit.
     Diagnose(diagnose::DiagnoseArgs),
     /// Modal identification from all channels at once: modes.csv, shapes.csv, stabilisation.png.
     Modal(modal::ModalArgs),

@@ -34,6 +34,9 @@ pub const MIN_QUADRATURE_MARGIN: f64 = 0.2;
 /// A mass's or stiffness change's image is ruled out when the runner-up's shape misfit
 /// Σ(1 − MAC) exceeds the best one's by this much.
 pub const MIN_SHAPE_MISFIT_MARGIN: f64 = 0.02;
+/// Most sizes of a lossy region handed on for the re-solved damping to choose among (the
+/// shapes' favourites): the true one was among the shapes' first two on every set tried.
+pub const MAX_SIZES: usize = 3;
 
 /// The quadrature part of `shape` relative to the real `reference`: `shape` rotated so that its
 /// projection on `reference` is real and positive, then its imaginary part.
@@ -122,14 +125,18 @@ fn shape_misfit(
 pub struct Resolved {
     /// The place that fits the shapes best.
     pub hypothesis: Hypothesis,
+    /// For a loss: the sizes at the winner's place that the shapes could not rule out (the
+    /// winner first), each with its quadrature correlation, for the re-solved damping to
+    /// choose among; empty otherwise.
+    pub sizes: Vec<(Hypothesis, f64)>,
     /// The others that could not be ruled out (empty when settled).
     pub images: Vec<Hypothesis>,
     /// Score per candidate, in the order (candidate, its images…, its alternatives…):
     /// quadrature correlation for a loss (higher is better), shape misfit for a mass or
     /// stiffness (lower is better).
     pub scores: Vec<f64>,
-    /// Whether the winner beat every candidate apart from it (overlapping it by less than
-    /// half) by the kind's margin.
+    /// Whether the winner beat every candidate at another place (less than half of the
+    /// smaller in the other) by the kind's margin.
     pub settled: bool,
 }
 
@@ -168,6 +175,7 @@ pub fn resolve_images(
     if all.len() == 1 {
         return Ok(Resolved {
             hypothesis: all[0].clone(),
+            sizes: Vec::new(),
             images: Vec::new(),
             scores: Vec::new(),
             settled: true,
@@ -189,7 +197,7 @@ pub fn resolve_images(
             Ok(-shape_misfit(measured, &model, base.fmax_hz, sensors)?)
         }
     })?;
-    let best = (0..all.len())
+    let top = (0..all.len())
         .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
         .expect("candidates are not empty");
     let margin = if loss {
@@ -197,19 +205,54 @@ pub fn resolve_images(
     } else {
         MIN_SHAPE_MISFIT_MARGIN
     };
-    let at = place(&all[best]);
-    let apart = |k: usize| match (&at, place(&all[k])) {
-        (Some(a), Some(b)) => a.overlap(&b) < 0.5,
-        _ => true,
+    // The shapes choose the place; among sizes at that place (half of the smaller in the
+    // other) they cannot choose (±1 cell scored 0.73–0.76 on a g = 50 % patch; a layer
+    // twice as wide with half the loss scored above the true one), so those the shapes do
+    // not rule out are handed on as `sizes`, for the re-solved damping to settle.
+    let top_place = place(&all[top]);
+    let same_place = |k: usize| match (&top_place, place(&all[k])) {
+        (Some(a), Some(b)) => a.containment(&b) >= 0.5,
+        _ => k == top,
     };
+    let within = |k: usize| scores[top] - scores[k] < margin;
+    let sizes: Vec<usize> = (0..all.len())
+        .filter(|&k| same_place(k) && within(k))
+        .collect();
+    // Of rectangles of one width and height (a size and its mirror image both at the place,
+    // overlapping) only the shapes' favourite is handed on: the damping cannot tell them
+    // apart, and each costs its re-solves.
+    let dims = |k: usize| place(&all[k]).map(|r| (r.x[1] - r.x[0], r.y[1] - r.y[0]));
+    let same_dims = |a: usize, b: usize| match (dims(a), dims(b)) {
+        (Some(p), Some(q)) => (p.0 - q.0).abs() < 1e-9 && (p.1 - q.1).abs() < 1e-9,
+        _ => false,
+    };
+    let mut sizes: Vec<usize> = sizes
+        .iter()
+        .copied()
+        .filter(|&k| {
+            !sizes
+                .iter()
+                .any(|&j| j != k && same_dims(j, k) && (scores[j], k) > (scores[k], j))
+        })
+        .collect();
+    // The first in the candidate's order stands in for them all; the shapes' favourites are
+    // handed on, at most MAX_SIZES (each costs four re-solves).
+    let best = sizes.first().copied().unwrap_or(top);
+    sizes.sort_by(|&a, &b| scores[b].total_cmp(&scores[a]));
+    sizes.truncate(MAX_SIZES);
     let rivals: Vec<usize> = (0..all.len())
-        .filter(|&k| k != best && apart(k) && scores[best] - scores[k] < margin)
+        .filter(|&k| !same_place(k) && within(k))
         .collect();
     if !loss {
         scores.iter_mut().for_each(|s| *s = -*s);
     }
     Ok(Resolved {
         hypothesis: all[best].clone(),
+        sizes: if loss {
+            sizes.iter().map(|&k| (all[k].clone(), scores[k])).collect()
+        } else {
+            Vec::new()
+        },
         settled: rivals.is_empty(),
         images: rivals.iter().map(|&k| all[k].clone()).collect(),
         scores,

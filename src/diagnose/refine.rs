@@ -6,7 +6,7 @@
 
 use super::evidence::{Evidence, ModelView};
 use super::hypothesis::{sls_with_peak, Hypothesis};
-use super::score::{Candidate, Scorer};
+use super::score::{Candidate, Prediction, Scorer};
 use crate::modal::Mode;
 use crate::sim::error::SimError;
 use crate::sim::model::{Model, SensorPosition};
@@ -150,6 +150,33 @@ pub fn refine(
         current = h.with_amplitude(next);
     }
     Ok(current)
+}
+
+/// The score ([`Scorer::bic`]) of `h` through the re-solved model rather than its
+/// first-order prediction: what `h` explains of each pair is the evidence before less the
+/// evidence after applying it (a pair the solved model loses explains nothing). `params` and
+/// `locations` as the candidate's. Used to choose among sizes of a lossy region, whose
+/// first-order damping trades the region's area for its loss.
+pub fn solved_bic(
+    measured: &[Mode],
+    sensors: &[SensorPosition],
+    base: &ModelView,
+    scorer: &Scorer,
+    h: &Hypothesis,
+    params: f64,
+    locations: f64,
+) -> Result<f64, SimError> {
+    let model = h.apply(&base.model);
+    let view = view_of(base, &model, h)?;
+    let after = Evidence::gather(measured, view.poles_at(sensors)?);
+    let mut explained = Prediction::none(scorer.n());
+    for (k, p) in scorer.pairs.iter().enumerate() {
+        if let Some(q) = after.pairs.iter().find(|q| q.measured == p.measured) {
+            explained.log_frequency[k] = scorer.log_frequency[k] - q.frequency_rel.ln_1p();
+            explained.damping[k] = scorer.damping[k] - q.damping_diff;
+        }
+    }
+    Ok(scorer.bic(&explained, params, locations))
 }
 
 /// Most re-solves of one refinement.

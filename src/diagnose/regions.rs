@@ -260,6 +260,21 @@ impl Region {
             0.0
         }
     }
+
+    /// The share of the smaller of the two rectangles that lies in the other (1: one holds
+    /// the other; 0: apart): a region and a narrower one inside it sit at the same place
+    /// though their [`Region::overlap`] is small.
+    pub fn containment(&self, other: &Region) -> f64 {
+        let ix = (self.x[1].min(other.x[1]) - self.x[0].max(other.x[0])).max(0.0);
+        let iy = (self.y[1].min(other.y[1]) - self.y[0].max(other.y[0])).max(0.0);
+        let area = |r: &Region| (r.x[1] - r.x[0]) * (r.y[1] - r.y[0]);
+        let smaller = area(self).min(area(other));
+        if smaller > 0.0 {
+            ix * iy / smaller
+        } else {
+            0.0
+        }
+    }
 }
 
 impl RectangleTable {

@@ -30,6 +30,11 @@ pub struct Image {
     /// For point kinds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub point: Option<Point>,
+    /// For another size of a region (one the evidence could not tell from the finding's):
+    /// its parameters, as the finding's. Empty (not written) for a mirror image, whose size
+    /// is the finding's.
+    #[serde(skip_serializing_if = "BTreeMap::is_empty")]
+    pub parameters: BTreeMap<String, f64>,
 }
 
 /// The next-best explanation of the same evidence.
@@ -83,6 +88,18 @@ pub struct Finding {
     pub runner_up: Option<RunnerUp>,
 }
 
+/// Whether `image` is a region of another width or height than `h`'s (not a mirror image).
+fn other_size(h: &Hypothesis, image: &Hypothesis) -> bool {
+    match (h.region(), image.region()) {
+        (Some(a), Some(b)) => {
+            let dims = |r: &Region| (r.x[1] - r.x[0], r.y[1] - r.y[0]);
+            let (p, q) = (dims(&a), dims(&b));
+            (p.0 - q.0).abs() > 1e-9 || (p.1 - q.1).abs() > 1e-9
+        }
+        _ => false,
+    }
+}
+
 impl Finding {
     /// The finding for a hypothesis of the model `model` (the model before it), with its
     /// unsettled images.
@@ -103,6 +120,11 @@ impl Finding {
                     point: match i {
                         Hypothesis::AddedMass { x_m, y_m, .. } => Some(Point { x: *x_m, y: *y_m }),
                         _ => None,
+                    },
+                    parameters: if other_size(h, i) {
+                        Finding::of(i, &[], model).parameters
+                    } else {
+                        BTreeMap::new()
                     },
                 })
                 .collect(),
