@@ -35,8 +35,9 @@ pub const MIN_QUADRATURE_MARGIN: f64 = 0.2;
 /// Σ(1 − MAC) exceeds the best one's by this much.
 pub const MIN_SHAPE_MISFIT_MARGIN: f64 = 0.02;
 /// Most sizes of a lossy region handed on for the re-solved damping to choose among (the
-/// shapes' favourites): the true one was among the shapes' first two on every set tried.
-pub const MAX_SIZES: usize = 3;
+/// shapes' favourites): the true one was among the shapes' first two on every set tried
+/// (Kirchhoff and FE recordings of a damped patch and of a viscoelastic layer).
+pub const MAX_SIZES: usize = 2;
 
 /// The quadrature part of `shape` relative to the real `reference`: `shape` rotated so that its
 /// projection on `reference` is real and positive, then its imaginary part.
