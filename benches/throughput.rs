@@ -5,7 +5,7 @@
 //! elements/s there is samples per channel × channels, so divide by the channel count.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use dampscope::cli::bands_arg::default_bands;
+use dampscope::frontend::bands::default_bands;
 use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
 use dampscope::frontend::FrontEnd;
 use dampscope::pipeline::{self, AnalysisConfig, ChannelAnalyzer, FrontEndFactory};

@@ -4,7 +4,7 @@
 //! `cargo run --release --example filterbank_sweep -- target/sweep`
 
 use dampscope::analysis::sweep::SweepConfig;
-use dampscope::cli::compare::{sweep_summary, sweep_to_dir};
+use dampscope::analysis::sweep::{sweep_summary, sweep_to_dir};
 
 fn main() -> anyhow::Result<()> {
     let dir = std::env::args()

@@ -1,4 +1,4 @@
-"""Cross-check for tests/filterbank_octave.rs: pyrato's own per-octave T20/T30 on the noisy
+"""Cross-check for tests/suite/filterbank_octave.rs: pyrato's own per-octave T20/T30 on the noisy
 analytic RIR (shared/reference/pyrato_tests/analytic_rir_psnr50_2D.csv), and the same RIR
 regenerated without noise.
 

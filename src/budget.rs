@@ -145,3 +145,21 @@ mod tests {
         assert!(MemoryBudget::from_machine().limit_bytes > 0);
     }
 }
+
+/// Peak resident memory of this process, KiB (Linux `/proc/self/status` VmHWM).
+pub fn peak_memory_kib() -> Option<u64> {
+    peak_memory_kib_of("self")
+}
+
+/// Peak resident memory of process `pid` ("self" or a number), KiB (Linux VmHWM); `None`
+/// where /proc is not available.
+pub fn peak_memory_kib_of(pid: &str) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
+}

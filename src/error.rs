@@ -17,7 +17,7 @@ pub enum Error {
         reason: String,
     },
     /// The work would need more memory than the budget allows (checked before allocating).
-    #[error("memory: {what} needs about {estimate}, more than the limit of {limit} (raise it with --max-memory, or reduce the work)")]
+    #[error("memory: {what} needs about {estimate}, more than the limit of {limit} (raise the memory limit, or reduce the work)")]
     MemoryLimit {
         /// What was to be allocated.
         what: String,

@@ -95,7 +95,7 @@ pub struct SubsetMean {
 pub enum MapError {
     /// The sensor list is empty.
     #[error(
-        "no sensors: a damping map needs sensor positions (a recording set or --sensors FILE)"
+        "no sensors: a damping map needs sensor positions (a recording set or a sensor file)"
     )]
     NoSensors,
     /// A sensor id appears twice.

@@ -9,6 +9,7 @@
 //! third-octave band centred on f). The fit range is T30; the reported D is the
 //! frequency-corrected one (D·f_center/f_dominant where the front end knows f_dominant).
 
+use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::decay::estimate::EstimateSettings;
@@ -249,14 +250,43 @@ pub fn run_sweep(cfg: &SweepConfig) -> Result<Vec<SweepRow>> {
     Ok(rows)
 }
 
-/// Writes the rows as CSV with a header.
-pub fn write_csv(rows: &[SweepRow], path: &Path) -> Result<()> {
-    let mut w = csv::Writer::from_path(path)
-        .map_err(|e| Error::Output(format!("{}: {e}", path.display())))?;
-    for r in rows {
-        w.serialize(r)
-            .map_err(|e| Error::Output(format!("{}: {e}", path.display())))?;
+/// Runs the sweep and writes `sweep.csv` and `sweep.png` into `dir` (created if missing).
+pub fn sweep_to_dir(cfg: &SweepConfig, dir: &Path) -> Result<Vec<SweepRow>> {
+    std::fs::create_dir_all(dir)?;
+    let rows = run_sweep(cfg)?;
+    crate::output::write_csv_file(&dir.join("sweep.csv"), &rows)?;
+    crate::plot::sweep_heatmap(&rows, &dir.join("sweep.png"))?;
+    Ok(rows)
+}
+
+/// Per front end and case: cases with an estimate, within 2 % and 5 %, and the median |error|.
+pub fn sweep_summary(rows: &[SweepRow]) -> String {
+    let mut out =
+        String::from("case    front_end     estimates  within_2%  within_5%  median_|err|_%\n");
+    for case in ["single", "pair"] {
+        for fe in SWEEP_FRONT_ENDS {
+            let sel: Vec<&SweepRow> = rows
+                .iter()
+                .filter(|r| r.case == case && r.front_end == fe)
+                .collect();
+            if sel.is_empty() {
+                continue;
+            }
+            let mut errs: Vec<f64> = sel.iter().filter_map(|r| r.rel_err.map(f64::abs)).collect();
+            errs.sort_by(f64::total_cmp);
+            let within = |t: f64| errs.iter().filter(|e| **e < t).count();
+            let median = errs
+                .get(errs.len() / 2)
+                .map_or("-".into(), |m| format!("{:.2}", m * 100.0));
+            let _ = writeln!(
+                out,
+                "{case:<7} {fe:<13} {:>4}/{:<4}  {:>9}  {:>9}  {median:>14}",
+                errs.len(),
+                sel.len(),
+                within(0.02),
+                within(0.05)
+            );
+        }
     }
-    w.flush()?;
-    Ok(())
+    out
 }

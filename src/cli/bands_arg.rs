@@ -6,7 +6,7 @@ use crate::error::{Error, Result};
 use crate::frontend::auto_bands::{
     auto_bands, bands_around_modes, min_width_for_record_hz, AutoBandSettings,
 };
-use crate::frontend::bands::{parse_band, parse_band_range, Band};
+use crate::frontend::bands::{default_bands, parse_band, parse_band_range, Band};
 use crate::frontend::iec_bands::{iec_bands, OctaveFraction};
 use crate::frontend::stft::StftSettings;
 use crate::source::raw::RawFormat;
@@ -221,13 +221,6 @@ impl BandArgs {
     pub fn resolve(&self, sample_rate_hz: f64) -> Result<Vec<Band>> {
         self.resolve_with(sample_rate_hz, None).map(|(b, _)| b)
     }
-}
-
-/// The default layout: the report's chapter 4 bands, 50 Hz wide, centred on 50, 100, 150, … Hz,
-/// up to 0.4 fs (at most 2 kHz).
-pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
-    let top = (0.4 * sample_rate_hz).min(2025.0);
-    parse_band_range(&format!("25:{top}:50"))
 }
 
 /// Options that say how to read raw or headerless input (shared by `analyze` and `compare`).

@@ -12,7 +12,7 @@ use anyhow::Context;
 
 use super::analyze::{make_front_end, FrontEndChoice};
 use super::bands_arg::{BandArgs, InputFormatArgs};
-use crate::analysis::sweep::{run_sweep, write_csv, SweepConfig, SweepRow, SWEEP_FRONT_ENDS};
+use crate::analysis::sweep::{sweep_summary, sweep_to_dir, SweepConfig};
 use crate::decay::DecayEstimate;
 use crate::error::{Error, Result};
 use crate::frontend::goyder::FilterDirection;
@@ -365,47 +365,6 @@ fn aligned(table: &[Vec<String>]) -> String {
         }
         out.truncate(out.trim_end().len());
         out.push('\n');
-    }
-    out
-}
-
-/// Runs the sweep and writes `sweep.csv` and `sweep.png` into `dir` (created if missing).
-pub fn sweep_to_dir(cfg: &SweepConfig, dir: &Path) -> Result<Vec<SweepRow>> {
-    std::fs::create_dir_all(dir)?;
-    let rows = run_sweep(cfg)?;
-    write_csv(&rows, &dir.join("sweep.csv"))?;
-    crate::plot::sweep_heatmap(&rows, &dir.join("sweep.png"))?;
-    Ok(rows)
-}
-
-/// Per front end and case: cases with an estimate, within 2 % and 5 %, and the median |error|.
-pub fn sweep_summary(rows: &[SweepRow]) -> String {
-    let mut out =
-        String::from("case    front_end     estimates  within_2%  within_5%  median_|err|_%\n");
-    for case in ["single", "pair"] {
-        for fe in SWEEP_FRONT_ENDS {
-            let sel: Vec<&SweepRow> = rows
-                .iter()
-                .filter(|r| r.case == case && r.front_end == fe)
-                .collect();
-            if sel.is_empty() {
-                continue;
-            }
-            let mut errs: Vec<f64> = sel.iter().filter_map(|r| r.rel_err.map(f64::abs)).collect();
-            errs.sort_by(f64::total_cmp);
-            let within = |t: f64| errs.iter().filter(|e| **e < t).count();
-            let median = errs
-                .get(errs.len() / 2)
-                .map_or("-".into(), |m| format!("{:.2}", m * 100.0));
-            let _ = writeln!(
-                out,
-                "{case:<7} {fe:<13} {:>4}/{:<4}  {:>9}  {:>9}  {median:>14}",
-                errs.len(),
-                sel.len(),
-                within(0.02),
-                within(0.05)
-            );
-        }
     }
     out
 }

@@ -14,7 +14,7 @@ use anyhow::Context;
 
 use super::analyze::{exit_code_of, prepare, PipelineArgs};
 use super::bands_arg::InputFormatArgs;
-use super::write_csv;
+use crate::output::write_csv_file;
 use crate::analysis::maps::{band_maps, BandMap, GlobalDamping, MapError, SubsetMean};
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, ResultRow};
@@ -127,8 +127,8 @@ pub fn run(args: &MapArgs) -> anyhow::Result<i32> {
     let code = exit_code_of(&summary);
     let maps: Vec<BandMap> = band_maps(&rows, &sensors, args.decay)?;
     let globals: Vec<GlobalDamping> = maps.iter().map(BandMap::global).collect();
-    write_csv(&args.out.join("global.csv"), &globals)?;
-    write_csv(
+    write_csv_file(&args.out.join("global.csv"), &globals)?;
+    write_csv_file(
         &args.out.join("sensors_needed.csv"),
         maps.iter().flat_map(|m| {
             m.sensors_needed(args.max_step)

@@ -92,26 +92,35 @@ pub fn main_exit_code() -> i32 {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("dampscope: error: {e:#}");
+            eprintln!("dampscope: error: {}", in_flags(&format!("{e:#}")));
             EXIT_FAILURE
         }
     }
 }
 
-/// Writes `rows` as a CSV file with a header from their field names (the tables of `map`,
-/// `resynth` and `diagnose`); errors name the file.
-pub(crate) fn write_csv<T: serde::Serialize>(
-    path: &std::path::Path,
-    rows: impl IntoIterator<Item = T>,
-) -> anyhow::Result<()> {
-    use anyhow::Context;
-    let mut w = csv::Writer::from_path(path)
-        .with_context(|| format!("cannot create {}", path.display()))?;
-    for r in rows {
-        w.serialize(r)
-            .with_context(|| format!("cannot write {}", path.display()))?;
-    }
-    w.flush()
-        .with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(())
+/// The library names settings by their fields; the command line by its flags. Each pair: the
+/// library's words, and what the command line prints instead.
+const LIBRARY_TO_FLAGS: &[(&str, &str)] = &[
+    ("invalid setting band:", "invalid setting --band:"),
+    ("invalid setting bands:", "invalid setting --bands:"),
+    ("invalid setting auto_bands:", "invalid setting --bands auto:"),
+    ("invalid setting overlap:", "invalid setting --overlap:"),
+    ("invalid setting window_ms:", "invalid setting --window-ms:"),
+    ("invalid setting zero_pad:", "invalid setting --zero-pad:"),
+    ("raise the memory limit", "raise it with --max-memory"),
+    ("the sample rate (fs_hz)", "the sample rate (--fs HZ)"),
+    ("the channel count (channels)", "the channel count (--channels N)"),
+    ("raw samples (declared raw)", "raw samples with --raw"),
+    ("the given sample rate is", "--fs says"),
+    ("(give none: a WAV", "(drop --fs: a WAV"),
+    ("a recording set or a sensor file", "a recording set or --sensors FILE"),
+];
+
+/// `message` (a library error's text) in the command line's words: setting names become the
+/// flags that set them.
+fn in_flags(message: &str) -> String {
+    LIBRARY_TO_FLAGS
+        .iter()
+        .fold(message.to_string(), |m, (library, flag)| m.replace(library, flag))
 }
+

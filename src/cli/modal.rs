@@ -132,7 +132,7 @@ fn write_outputs(
 ) -> anyhow::Result<()> {
     let dir = &args.out;
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    super::write_csv(&dir.join("modes.csv"), mode_rows(result, matches))?;
+    crate::output::write_csv_file(&dir.join("modes.csv"), mode_rows(result, matches))?;
     let mut rows = Vec::new();
     for (k, m) in result.modes.iter().enumerate() {
         for (c, v) in m.shape.iter().enumerate() {
@@ -148,7 +148,7 @@ fn write_outputs(
             });
         }
     }
-    super::write_csv(&dir.join("shapes.csv"), rows)?;
+    crate::output::write_csv_file(&dir.join("shapes.csv"), rows)?;
     crate::plot::stabilisation_diagram(
         result,
         &rec.mean_power_spectrum_db(),

@@ -103,27 +103,9 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
             report.solve_s, report.reorth_s, report.tridiagonal_s, report.ritz_s
         );
         eprintln!("quality: max relative residual {res:.2e}, max |Phi^T M Phi - I| {orth:.2e}");
-        if let Some(hwm) = peak_memory_kib() {
+        if let Some(hwm) = crate::budget::peak_memory_kib() {
             eprintln!("peak memory (VmHWM): {:.1} MiB", hwm as f64 / 1024.0);
         }
     }
     Ok(())
-}
-
-/// Peak resident memory of this process, KiB (Linux `/proc/self/status` VmHWM).
-pub fn peak_memory_kib() -> Option<u64> {
-    peak_memory_kib_of("self")
-}
-
-/// Peak resident memory of process `pid` ("self" or a number), KiB (Linux VmHWM); `None`
-/// where /proc is not available.
-pub fn peak_memory_kib_of(pid: &str) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()
 }

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
-use super::write_csv;
+use crate::output::write_csv_file;
 use crate::analysis::resynthesis::{resynthesize, BandDamping};
 use crate::sim::assembly::assemble;
 use crate::sim::eigen::{lowest_modes, ModeRequest};
@@ -158,8 +158,8 @@ pub fn run(args: &ResynthArgs) -> anyhow::Result<()> {
         u_static.as_deref(),
     )?;
 
-    write_csv(&args.out.join("resynth.csv"), &r.bands)?;
-    write_csv(&args.out.join("modes.csv"), &r.modes)?;
+    write_csv_file(&args.out.join("resynth.csv"), &r.bands)?;
+    write_csv_file(&args.out.join("modes.csv"), &r.modes)?;
     #[derive(serde::Serialize)]
     struct FrfRow {
         f_hz: f64,
@@ -176,7 +176,7 @@ pub fn run(args: &ResynthArgs) -> anyhow::Result<()> {
             abs_estimated_m_per_n: r.estimated.receptance_m_per_n[(k, driving_point)].norm(),
         })
         .collect();
-    write_csv(&args.out.join("frf_driving_point.csv"), &frf_rows)?;
+    write_csv_file(&args.out.join("frf_driving_point.csv"), &frf_rows)?;
     crate::plot::resynthesis_figure(&r, &original, driving_point, &args.out.join("resynth.png"))?;
 
     println!(

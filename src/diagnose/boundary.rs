@@ -7,7 +7,7 @@
 //! solved at both limits and the model is reduced to the union of the two mode sets
 //! (M-orthonormalised): K̂(k) = K̂_rest + k K̂_edge. In that basis every k costs one small dense
 //! eigen-solve, so k is searched on a log grid and refined, per edge. The reduced solution is
-//! checked against re-solving the full model (tests/diagnose_boundary.rs). Each mode of the
+//! checked against re-solving the full model (tests/suite/diagnose_boundary.rs). Each mode of the
 //! reduced model is paired with the measured modes by shape, like the model's own; a mode's
 //! damping comes from its strain-energy shares (modal strain energy), and the nominal model is
 //! solved in the same basis so that the basis's own error cancels.

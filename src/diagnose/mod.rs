@@ -30,6 +30,7 @@ pub mod mirror;
 pub mod nnls;
 pub mod noise;
 pub mod nuisance;
+pub mod output;
 pub mod procedure;
 pub mod refine;
 pub mod regions;

@@ -169,13 +169,13 @@ pub fn spectral_peaks_multi(
     let longest = channels.iter().map(|c| c.len()).max().unwrap_or(0);
     if longest < 4 || channels.iter().any(|c| c.iter().any(|x| !x.is_finite())) {
         return Err(Error::setting(
-            "--bands auto",
+            "auto_bands",
             format!("expected at least 4 finite samples to find modes, got {longest} samples"),
         ));
     }
     if !(s.zero_pad >= 1 && s.zero_pad <= 64 && s.threshold_db >= 0.0 && s.min_spacing_hz >= 0.0) {
         return Err(Error::setting(
-            "--bands auto",
+            "auto_bands",
             "expected zero_pad 1…64, threshold_db >= 0 and min_spacing_hz >= 0",
         ));
     }
@@ -192,7 +192,7 @@ pub fn spectral_peaks_multi(
         input[..samples.len()].copy_from_slice(samples);
         let mut spectrum = fft.make_output_vec();
         fft.process(&mut input, &mut spectrum)
-            .map_err(|e| Error::setting("--bands auto", format!("FFT failed: {e}")))?;
+            .map_err(|e| Error::setting("auto_bands", format!("FFT failed: {e}")))?;
         for (p, c) in power.iter_mut().zip(&spectrum) {
             *p += c.norm_sqr() / energy;
         }
@@ -295,7 +295,7 @@ pub fn auto_bands(channels: &[&[f64]], fs_hz: f64, s: &AutoBandSettings) -> Resu
     let peaks: Vec<f64> = found.iter().map(|p| p.f_hz).collect();
     if peaks.is_empty() {
         return Err(Error::setting(
-            "--bands auto",
+            "auto_bands",
             format!(
                 "expected at least one spectral peak between {} and {} Hz, found none",
                 s.f_min_hz, s.f_max_hz

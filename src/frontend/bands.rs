@@ -60,25 +60,25 @@ fn parse_numbers(text: &str, what: &str, count: usize) -> Result<Vec<f64>> {
 
 /// Parses `LO:HI` (Hz) into one band.
 pub fn parse_band(text: &str) -> Result<Band> {
-    let v = parse_numbers(text, "--band", 2)?;
+    let v = parse_numbers(text, "band", 2)?;
     Band::new(v[0], v[1])
 }
 
 /// Parses `LO:HI:WIDTH` (Hz) into consecutive bands of `WIDTH` from `LO` up to `HI`
 /// (the last band ends at or below `HI`).
 pub fn parse_band_range(text: &str) -> Result<Vec<Band>> {
-    let v = parse_numbers(text, "--bands", 3)?;
+    let v = parse_numbers(text, "bands", 3)?;
     let (lo, hi, width) = (v[0], v[1], v[2]);
     if !(width > 0.0 && hi > lo && lo >= 0.0 && (hi - lo).is_finite()) {
         return Err(Error::setting(
-            "--bands",
+            "bands",
             format!("expected 0 <= LO < HI and WIDTH > 0, got '{text}'"),
         ));
     }
     let n = ((hi - lo) / width + 1e-9).floor() as usize;
     if n == 0 || n > 100_000 {
         return Err(Error::setting(
-            "--bands",
+            "bands",
             format!("'{text}' gives {n} bands; expected 1 to 100000"),
         ));
     }
@@ -103,3 +103,15 @@ mod tests {
         assert!(parse_band_range("0:100:0").is_err());
     }
 }
+
+/// The default layout: the report's chapter 4 bands, 50 Hz wide, centred on 50, 100, 150, … Hz,
+/// up to 0.4 fs (at most 2 kHz).
+pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
+    let top = (DEFAULT_BANDS_TOP_FRACTION_OF_FS * sample_rate_hz).min(DEFAULT_BANDS_TOP_HZ);
+    parse_band_range(&format!("25:{top}:50"))
+}
+
+/// The default layout reaches up to this fraction of the sample rate.
+pub const DEFAULT_BANDS_TOP_FRACTION_OF_FS: f64 = 0.4;
+/// The default layout ends at the latest at this band edge, Hz (the band centred on 2 kHz).
+pub const DEFAULT_BANDS_TOP_HZ: f64 = 2025.0;

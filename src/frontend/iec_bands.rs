@@ -88,7 +88,7 @@ pub fn iec_bands(
     }
     if !f_min_hz.is_finite() {
         return Err(Error::setting(
-            "--bands",
+            "bands",
             format!("expected a finite lowest band frequency in Hz, got {f_min_hz}"),
         ));
     }

@@ -81,14 +81,14 @@ impl StftFrontEnd {
         }
         if !(settings.overlap >= 0.0 && settings.overlap < 1.0) {
             return Err(Error::setting(
-                "--overlap",
+                "overlap",
                 format!("expected 0 <= overlap < 1, got {}", settings.overlap),
             ));
         }
         let win_len = (settings.window_ms * 1e-3 * sample_rate_hz).round();
         if !(4.0..=1e8).contains(&win_len) {
             return Err(Error::setting(
-                "--window-ms",
+                "window_ms",
                 format!(
                     "{} ms at {sample_rate_hz} Hz gives {win_len} samples; expected 4 to 1e8",
                     settings.window_ms
@@ -97,7 +97,7 @@ impl StftFrontEnd {
         }
         if settings.zero_pad == 0 || settings.zero_pad > 64 {
             return Err(Error::setting(
-                "--zero-pad",
+                "zero_pad",
                 format!("expected 1 to 64, got {}", settings.zero_pad),
             ));
         }

@@ -195,3 +195,19 @@ pub fn read_table(text: &str) -> Result<Vec<std::collections::HashMap<String, St
     }
     Ok(rows)
 }
+
+/// Writes `rows` to `path` as CSV with a header row (the `csv` crate: quoting and escaping are
+/// its own). The one writer of every table file (`global.csv`, `modes.csv`, `sweep.csv`, …);
+/// an error names the file.
+pub fn write_csv_file<T: serde::Serialize>(
+    path: &std::path::Path,
+    rows: impl IntoIterator<Item = T>,
+) -> Result<()> {
+    let failed = |e: csv::Error| Error::Output(format!("{}: {e}", path.display()));
+    let mut w = csv::Writer::from_path(path).map_err(failed)?;
+    for r in rows {
+        w.serialize(r).map_err(failed)?;
+    }
+    w.flush()
+        .map_err(|e| Error::Output(format!("{}: {e}", path.display())))
+}

@@ -11,7 +11,7 @@
 //!   complex, possibly frequency-dependent stiffness couples the kept modes to truncated ones.
 //!
 //! With modes only (no residual vectors) a damped patch misses ~65 % per band on a lattice test (see
-//! tests/sim_frf.rs); with them fast vs direct is < 1 % per 50 Hz band.
+//! tests/suite/sim_frf.rs); with them fast vs direct is < 1 % per 50 Hz band.
 //!
 //! M, every K_r and C are projected once (dense m × m). Per frequency the small complex system
 //! (Σ_r s_r(ω) K̂_r + jω Ĉ − ω² M̂) q = Vᵀ f is solved and mapped to the sensors with (S V) q.

@@ -55,7 +55,7 @@ pub enum SourceError {
         got: usize,
     },
     /// A sample rate given as an option disagrees with the one the file's header states.
-    #[error("{what}: the header says {header_hz} Hz but --fs says {option_hz} Hz (drop --fs: a WAV or recording set carries its own rate)")]
+    #[error("{what}: the header says {header_hz} Hz but the given sample rate is {option_hz} Hz (give none: a WAV or recording set carries its own rate)")]
     SampleRateConflict {
         /// What was being read.
         what: String,

@@ -124,11 +124,11 @@ fn raw_source<R: Read + Send + 'static>(
 ) -> Result<Box<dyn Source>, SourceError> {
     let fs = opts.fs_hz.ok_or_else(|| SourceError::Setting {
         what: what.to_string(),
-        detail: format!("raw {format} input needs the sample rate (--fs HZ), none given"),
+        detail: format!("raw {format} input needs the sample rate (fs_hz), none given"),
     })?;
     let ch = opts.channels.ok_or_else(|| SourceError::Setting {
         what: what.to_string(),
-        detail: format!("raw {format} input needs the channel count (--channels N), none given"),
+        detail: format!("raw {format} input needs the channel count (channels), none given"),
     })?;
     Ok(Box::new(RawSource::new(reader, what, format, fs, ch)?))
 }
@@ -163,7 +163,7 @@ pub fn open_stream<R: Read + Send + 'static>(
         return Err(SourceError::UnrecognisedFormat {
             what: what.to_string(),
             detail: format!(
-                "expected a WAV stream (starting with RIFF), CSV text, or raw samples with --raw; got {}",
+                "expected a WAV stream (starting with RIFF), CSV text, or raw samples (declared raw); got {}",
                 describe(&head)
             ),
         });

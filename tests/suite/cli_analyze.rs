@@ -1,0 +1,211 @@
+//! `dampscope synth … | dampscope analyze -` and friends, through the real binary.
+
+
+use crate::common::run_dampscope as dampscope;
+
+use std::process::Output;
+
+fn synth(format: &str) -> Vec<u8> {
+    let out = dampscope(
+        &[
+            "synth",
+            "--mode",
+            "55:0.025",
+            "--fs",
+            "4000",
+            "--seconds",
+            "4",
+            "--format",
+            format,
+        ],
+        b"",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out.stdout
+}
+
+/// Column `name` of the first data row of a results CSV.
+fn cell(csv_text: &str, name: &str) -> String {
+    let rows = dampscope::output::read_table(csv_text).unwrap();
+    rows[0].get(name).cloned().unwrap_or_default()
+}
+
+/// Analyses `input` from standard input in the 55 Hz band; D_corrected must be 2.5 % ± 2 %.
+fn assert_stdin_gives_2_5_percent(input: &[u8]) {
+    let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], input);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let d: f64 = cell(&text, "damping_ratio_corrected").parse().unwrap();
+    assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
+}
+
+fn assert_clean(out: &Output) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "panic: {err}");
+}
+
+#[test]
+fn wav_piped_from_synth_is_analysed() {
+    let wav = synth("wav");
+    assert_eq!(&wav[..4], b"RIFF");
+    assert_stdin_gives_2_5_percent(&wav);
+}
+
+#[test]
+fn raw_f32_piped_from_synth_is_analysed() {
+    let raw = synth("raw-f32");
+    let out = dampscope(
+        &[
+            "analyze",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4000",
+            "--channels",
+            "1",
+            "--band",
+            "52.5:57.5",
+            "--format",
+            "jsonl",
+        ],
+        &raw,
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let line = String::from_utf8(out.stdout).unwrap();
+    let v: serde_json::Value = serde_json::from_str(line.lines().next().unwrap()).unwrap();
+    let d = v["damping_ratio_corrected"].as_f64().unwrap();
+    assert!((d / 0.025 - 1.0).abs() < 0.02, "D = {d}");
+}
+
+#[test]
+fn csv_input_is_analysed() {
+    let csv = synth("csv");
+    assert_stdin_gives_2_5_percent(&csv);
+}
+
+#[test]
+fn garbage_input_is_a_clear_error() {
+    let out = dampscope(
+        &["analyze", "-"],
+        &[0u8, 159, 146, 150, 1, 2, 3, 255, 0, 0, 7],
+    );
+    assert_clean(&out);
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("error"), "{err}");
+}
+
+#[test]
+fn empty_input_is_a_clear_error() {
+    let out = dampscope(&["analyze", "-"], b"");
+    assert_clean(&out);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no samples"));
+}
+
+#[test]
+fn truncated_wav_flushes_partial_results_and_exits_3() {
+    let wav = synth("wav");
+    // Cut after ~1 s, while the decay (100 dB down only after ~1.3 s) is still running.
+    let cut = &wav[..wav.len() / 4 + 1];
+    let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], cut);
+    assert_clean(&out);
+    assert_eq!(
+        out.status.code(),
+        Some(3),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(cell(&text, "flags").contains("input_truncated"), "{text}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("truncated"));
+}
+
+#[test]
+fn truncated_raw_frame_is_reported() {
+    let mut raw = synth("raw-f32");
+    raw.truncate(raw.len() - 2);
+    let out = dampscope(
+        &[
+            "analyze",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4000",
+            "--channels",
+            "1",
+            "--band",
+            "52.5:57.5",
+        ],
+        &raw,
+    );
+    assert_clean(&out);
+    assert_eq!(out.status.code(), Some(3));
+}
+
+#[test]
+fn nan_channel_is_flagged_and_the_other_channel_still_analysed() {
+    // Two channels: ch0 a clean decay, ch1 holds a NaN.
+    let fs = 4000.0;
+    let mut text = String::from("time,a,b\n");
+    for i in 0..16000 {
+        let t = i as f64 / fs;
+        let w = 2.0 * std::f64::consts::PI * 55.0;
+        let x = (-(0.025 * w) * t).exp() * (w * t).sin();
+        let y = if i == 100 { f64::NAN } else { x };
+        text.push_str(&format!("{t},{x},{y}\n"));
+    }
+    let out = dampscope(&["analyze", "-", "--band", "52.5:57.5"], text.as_bytes());
+    assert_clean(&out);
+    assert_eq!(out.status.code(), Some(3));
+    let rows = dampscope::output::read_table(&String::from_utf8(out.stdout).unwrap()).unwrap();
+    let a = rows.iter().find(|r| r["channel"] == "a").unwrap();
+    let b = rows.iter().find(|r| r["channel"] == "b").unwrap();
+    assert!(!a["damping_ratio"].is_empty());
+    assert!(b["damping_ratio"].is_empty());
+    assert!(b["flags"].contains("non_finite_input"));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("NaN"));
+}
+
+#[test]
+fn recording_set_directory_is_analysed() {
+    let dir =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/recording-set-example");
+    assert!(dir.is_dir(), "reference data missing: {}", dir.display());
+    let out = dampscope(
+        &[
+            "analyze",
+            dir.to_str().unwrap(),
+            "--window-ms",
+            "50",
+            "--bands",
+            "0:200:20",
+            "--range",
+            "t20",
+        ],
+        b"",
+    );
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = dampscope::output::read_table(&String::from_utf8(out.stdout).unwrap()).unwrap();
+    let channels: std::collections::BTreeSet<_> =
+        rows.iter().map(|r| r["channel"].clone()).collect();
+    assert_eq!(channels.len(), 4, "{channels:?}");
+}
