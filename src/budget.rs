@@ -124,6 +124,24 @@ pub fn parse_size(text: &str) -> std::result::Result<u64, String> {
     Ok((v * mult) as u64)
 }
 
+/// Peak resident memory of this process, KiB (Linux `/proc/self/status` VmHWM).
+pub fn peak_memory_kib() -> Option<u64> {
+    peak_memory_kib_of("self")
+}
+
+/// Peak resident memory of process `pid` ("self" or a number), KiB (Linux VmHWM); `None`
+/// where /proc is not available.
+pub fn peak_memory_kib_of(pid: &str) -> Option<u64> {
+    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
+    status
+        .lines()
+        .find(|l| l.starts_with("VmHWM:"))?
+        .split_whitespace()
+        .nth(1)?
+        .parse()
+        .ok()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -144,22 +162,4 @@ mod tests {
         assert!(b.check("x", f64::INFINITY).is_err());
         assert!(MemoryBudget::from_machine().limit_bytes > 0);
     }
-}
-
-/// Peak resident memory of this process, KiB (Linux `/proc/self/status` VmHWM).
-pub fn peak_memory_kib() -> Option<u64> {
-    peak_memory_kib_of("self")
-}
-
-/// Peak resident memory of process `pid` ("self" or a number), KiB (Linux VmHWM); `None`
-/// where /proc is not available.
-pub fn peak_memory_kib_of(pid: &str) -> Option<u64> {
-    let status = std::fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    status
-        .lines()
-        .find(|l| l.starts_with("VmHWM:"))?
-        .split_whitespace()
-        .nth(1)?
-        .parse()
-        .ok()
 }

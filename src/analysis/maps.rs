@@ -94,9 +94,7 @@ pub struct SubsetMean {
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum MapError {
     /// The sensor list is empty.
-    #[error(
-        "no sensors: a damping map needs sensor positions (a recording set or a sensor file)"
-    )]
+    #[error("no sensors: a damping map needs sensor positions (a recording set or a sensor file)")]
     NoSensors,
     /// A sensor id appears twice.
     #[error("sensor id {0:?} appears twice in the sensor list")]

@@ -6,7 +6,7 @@
 //! (first sample within `--onset-level-db` of the peak) and runs to the end of the input.
 
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use anyhow::Context;
 

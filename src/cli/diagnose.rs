@@ -8,10 +8,10 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
+use crate::diagnose::output::write_diagnosis;
 use crate::diagnose::procedure::{
     diagnose_with_progress, DiagnoseSettings, DEFAULT_DIAGNOSE_FMAX_HZ,
 };
-use crate::diagnose::output::write_diagnosis;
 use crate::diagnose::score::DEFAULT_MODEL_FORM_SIGMA;
 use crate::modal::model_shapes::sensor_positions;
 use crate::modal::Recordings;
@@ -92,4 +92,3 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     write_diagnosis(&args.out, &d, &args.input, &args.model)
         .with_context(|| format!("writing the diagnosis into {}", args.out.display()))
 }
-

@@ -14,8 +14,8 @@ use anyhow::Context;
 
 use super::analyze::{exit_code_of, prepare, PipelineArgs};
 use super::bands_arg::InputFormatArgs;
-use crate::output::write_csv_file;
 use crate::analysis::maps::{band_maps, BandMap, GlobalDamping, MapError, SubsetMean};
+use crate::output::write_csv_file;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, ResultRow};
 use crate::source::recording_set::read_sensors;

@@ -103,17 +103,26 @@ pub fn main_exit_code() -> i32 {
 const LIBRARY_TO_FLAGS: &[(&str, &str)] = &[
     ("invalid setting band:", "invalid setting --band:"),
     ("invalid setting bands:", "invalid setting --bands:"),
-    ("invalid setting auto_bands:", "invalid setting --bands auto:"),
+    (
+        "invalid setting auto_bands:",
+        "invalid setting --bands auto:",
+    ),
     ("invalid setting overlap:", "invalid setting --overlap:"),
     ("invalid setting window_ms:", "invalid setting --window-ms:"),
     ("invalid setting zero_pad:", "invalid setting --zero-pad:"),
     ("raise the memory limit", "raise it with --max-memory"),
     ("the sample rate (fs_hz)", "the sample rate (--fs HZ)"),
-    ("the channel count (channels)", "the channel count (--channels N)"),
+    (
+        "the channel count (channels)",
+        "the channel count (--channels N)",
+    ),
     ("raw samples (declared raw)", "raw samples with --raw"),
     ("the given sample rate is", "--fs says"),
     ("(give none: a WAV", "(drop --fs: a WAV"),
-    ("a recording set or a sensor file", "a recording set or --sensors FILE"),
+    (
+        "a recording set or a sensor file",
+        "a recording set or --sensors FILE",
+    ),
 ];
 
 /// `message` (a library error's text) in the command line's words: setting names become the
@@ -121,6 +130,7 @@ const LIBRARY_TO_FLAGS: &[(&str, &str)] = &[
 fn in_flags(message: &str) -> String {
     LIBRARY_TO_FLAGS
         .iter()
-        .fold(message.to_string(), |m, (library, flag)| m.replace(library, flag))
+        .fold(message.to_string(), |m, (library, flag)| {
+            m.replace(library, flag)
+        })
 }
-

@@ -11,8 +11,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
-use crate::output::write_csv_file;
 use crate::analysis::resynthesis::{resynthesize, BandDamping};
+use crate::output::write_csv_file;
 use crate::sim::assembly::assemble;
 use crate::sim::eigen::{lowest_modes, ModeRequest};
 use crate::sim::model::Model;

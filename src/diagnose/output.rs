@@ -63,8 +63,12 @@ pub fn write_diagnosis(out: &Path, d: &Diagnosis, recordings: &Path, model: &Pat
         }
     }
     let path = out.join(UPDATED_MODEL_FILE);
-    let text = toml::to_string(&updated)
-        .map_err(|e| Error::Output(format!("{}: the updated model as TOML: {e}", path.display())))?;
+    let text = toml::to_string(&updated).map_err(|e| {
+        Error::Output(format!(
+            "{}: the updated model as TOML: {e}",
+            path.display()
+        ))
+    })?;
     std::fs::write(&path, text).map_err(failed(&path))?;
     let rows: Vec<ModeRow> = d
         .evidence
@@ -188,4 +192,3 @@ pub fn write_figures(out: &Path, model: &Model, d: &Diagnosis) -> Result<()> {
     }
     Ok(())
 }
-

@@ -87,6 +87,18 @@ pub fn parse_band_range(text: &str) -> Result<Vec<Band>> {
         .collect()
 }
 
+/// The default layout: the report's chapter 4 bands, 50 Hz wide, centred on 50, 100, 150, … Hz,
+/// up to 0.4 fs (at most 2 kHz).
+pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
+    let top = (DEFAULT_BANDS_TOP_FRACTION_OF_FS * sample_rate_hz).min(DEFAULT_BANDS_TOP_HZ);
+    parse_band_range(&format!("25:{top}:50"))
+}
+
+/// The default layout reaches up to this fraction of the sample rate.
+pub const DEFAULT_BANDS_TOP_FRACTION_OF_FS: f64 = 0.4;
+/// The default layout ends at the latest at this band edge, Hz (the band centred on 2 kHz).
+pub const DEFAULT_BANDS_TOP_HZ: f64 = 2025.0;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -103,15 +115,3 @@ mod tests {
         assert!(parse_band_range("0:100:0").is_err());
     }
 }
-
-/// The default layout: the report's chapter 4 bands, 50 Hz wide, centred on 50, 100, 150, … Hz,
-/// up to 0.4 fs (at most 2 kHz).
-pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
-    let top = (DEFAULT_BANDS_TOP_FRACTION_OF_FS * sample_rate_hz).min(DEFAULT_BANDS_TOP_HZ);
-    parse_band_range(&format!("25:{top}:50"))
-}
-
-/// The default layout reaches up to this fraction of the sample rate.
-pub const DEFAULT_BANDS_TOP_FRACTION_OF_FS: f64 = 0.4;
-/// The default layout ends at the latest at this band edge, Hz (the band centred on 2 kHz).
-pub const DEFAULT_BANDS_TOP_HZ: f64 = 2025.0;

@@ -1,6 +1,5 @@
 //! `dampscope synth … | dampscope analyze -` and friends, through the real binary.
 
-
 use crate::common::run_dampscope as dampscope;
 
 use std::process::Output;

@@ -1,6 +1,5 @@
 //! Issue 2 acceptance: the STFT + online Schroeder chain against decays with known damping.
 
-
 use crate::common::{decaying_sines, rel_err, stft_estimate};
 use dampscope::decay::{EvaluationRange, Flag};
 

@@ -1,6 +1,5 @@
 //! Issue 4 acceptance: the Goyder-style filter bank against decays with known damping.
 
-
 use crate::common::{decaying_sines, rel_err, stft_estimate};
 use dampscope::decay::estimate::EstimateSettings;
 use dampscope::decay::{DecayEstimate, EvaluationRange, Flag};

@@ -1,7 +1,6 @@
 //! Issue 4 acceptance: the IEC octave bank on pyrato's analytic room impulse responses
 //! (`tests/data/pyrato/`, copied from shared/reference/pyrato_tests; a missing file fails).
 
-
 use std::path::PathBuf;
 
 use crate::common::{decaying_sines, rel_err};

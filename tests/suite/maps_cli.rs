@@ -2,7 +2,6 @@
 //! sensor's truth, the global mean is the mean of the truths (eq. 4.3), a sensor that does not
 //! move is counted as missing, never filled in; inputs without sensor positions are refused.
 
-
 use std::path::Path;
 use std::process::Command;
 

@@ -1,6 +1,5 @@
 //! Decays that end in a noise floor: Lundeby truncation and compensation.
 
-
 use crate::common::{decaying_sines, gaussian_noise, rel_err, stft_estimate};
 use dampscope::decay::{EvaluationRange, Flag};
 

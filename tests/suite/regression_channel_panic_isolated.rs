@@ -3,7 +3,6 @@
 //! that worker silently missing. A panic in one channel's analysis now stops that channel only:
 //! its rows carry `internal_error`, the summary names it, and the other channels are analysed.
 
-
 use std::sync::Arc;
 
 use crate::common::decaying_sines;

@@ -5,7 +5,6 @@
 //! standard input exited 3 with 31 `no_energy` rows. Each is now an error with a message, or
 //! (the empty cell) a missing sample of that channel only.
 
-
 use crate::common::run_dampscope as dampscope;
 
 use std::path::Path;

@@ -1,7 +1,6 @@
 //! Measured records that found bugs (issue 15): a living-room RIR and pyrato's noisy measured
 //! RIR against pyrato's own numbers, and a structural shock record with `--bands auto`.
 
-
 use crate::common::{rel_err, run_dampscope};
 
 fn data(rel: &str) -> String {

@@ -4,7 +4,6 @@
 //! more than 8 GB. Each is now refused before allocating, naming the estimate and the limit, except the
 //! sensor grid: `simulate` streams it to disk (the direct method, which holds it, is refused).
 
-
 use crate::common::run_dampscope as dampscope;
 
 use std::process::Output;

@@ -3,7 +3,6 @@
 //! T60 ≈ 100 s, D ≈ 0.003 %, r² 0.63–0.75 and no flag. Now a new hit during a decay starts a new
 //! decay, and a fit that bad, whatever its cause, gives no number (`poor_fit`).
 
-
 use std::sync::Arc;
 
 use crate::common::{decaying_sines, gaussian_noise, rel_err};

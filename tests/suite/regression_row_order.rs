@@ -2,7 +2,6 @@
 //! the results file's hash differed in 2 of 5 identical runs and results could not be diffed.
 //! Rows now come by stream position (decay onset), channel, band, whatever the timing.
 
-
 use std::sync::Arc;
 
 use crate::common::{decaying_sines, gaussian_noise};

@@ -4,7 +4,6 @@
 //! as each hit recorded alone, with every front end, default detection settings and a finite
 //! `--end-drop-db`.
 
-
 use std::collections::HashMap;
 
 use crate::common::{decaying_sines, fresh_dir, gaussian_noise, run_dampscope};

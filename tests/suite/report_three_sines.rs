@@ -1,7 +1,6 @@
 //! The report's Table 4.1 case: three decaying sines (170/200/230 Hz, D 2.5 %, A 1, ψ 0) in one
 //! 150–250 Hz band. The report finds D_eq,ref = 2.16 %: below 2.5 % because of beating.
 
-
 use crate::common::{decaying_sines, stft_estimate};
 use dampscope::decay::EvaluationRange;
 

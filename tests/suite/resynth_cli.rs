@@ -1,7 +1,6 @@
 //! `dampscope resynth`: the global damping per band applied to the undamped modes (report
 //! eqs. 4.6–4.8), end to end through the binary.
 
-
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;

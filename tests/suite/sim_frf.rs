@@ -1,13 +1,12 @@
 //! FRF methods against analytic results and against each other (direct = reference).
 
-
+use crate::sim_frf_support::{dense_modes, first_modes, grid, Lattice, Patch};
 use dampscope::sim::frf::{band_error, direct_frf, FreqBand, Frf, FrfError};
 use dampscope::sim::reduced::{BasisOptions, ReducedModel, ReducedSolve};
 use dampscope::sim::system::{FeSystem, SensorWeights, Sls, StiffnessTerm};
 use dampscope::sim::truncation::{mode_columns, truncated_frf, ModalDamping};
 use faer::c64;
 use faer::sparse::{SparseColMat, Triplet};
-use crate::sim_frf_support::{dense_modes, first_modes, grid, Lattice, Patch};
 
 const TAU: f64 = 2.0 * std::f64::consts::PI;
 
