@@ -208,3 +208,32 @@ fn recording_set_directory_is_analysed() {
         rows.iter().map(|r| r["channel"].clone()).collect();
     assert_eq!(channels.len(), 4, "{channels:?}");
 }
+
+/// The library names a bad setting by its field (`overlap`, `window_ms`, `bands`); the command
+/// line says which flag set it, and nothing in the library's own message names a flag.
+#[test]
+fn a_bad_setting_is_named_by_its_flag() {
+    let wav = synth("wav");
+    for (flag, value) in [
+        ("--overlap", "1.5"),
+        ("--window-ms", "0.1"),
+        ("--bands", "5:1:1"),
+    ] {
+        let out = dampscope(&["analyze", "-", flag, value], &wav);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(
+            err.contains(&format!("invalid setting {flag}:")),
+            "{flag}: {err}"
+        );
+    }
+    let settings = dampscope::frontend::stft::StftSettings {
+        overlap: 1.5,
+        ..Default::default()
+    };
+    let bands = [dampscope::frontend::Band::new(100.0, 200.0).unwrap()];
+    let e = dampscope::frontend::stft::StftFrontEnd::new(settings, 4000.0, &bands)
+        .err()
+        .expect("overlap 1.5 is refused");
+    assert!(!e.to_string().contains("--"), "{e}");
+}

@@ -16,6 +16,11 @@ fn three_sines(fs: f64) -> Vec<f64> {
     )
 }
 
+/// Every window that leaves the decay enough frames reads D_eq below each mode's 2.5 % (the
+/// beating of three equal modes pulls the band's decay down, as the report says) but within
+/// 20 % of it, unflagged; a 50 ms window leaves 3–5 frames in the range and its number carries
+/// a flag. Measured: 2.16/2.25 % (10 ms, T20/T30), 2.15/2.29 % (20 ms), 1.93/2.35 % flagged
+/// `nonlinear_decay` (50 ms).
 #[test]
 fn three_sine_equivalent_damping_table() {
     let fs = 4000.0;
@@ -23,13 +28,20 @@ fn three_sine_equivalent_damping_table() {
     for window_ms in [10.0, 20.0, 50.0] {
         for range in [EvaluationRange::T20, EvaluationRange::T30] {
             let est = stft_estimate(&x, fs, window_ms, 150.0, 250.0, range);
-            eprintln!(
-                "window {window_ms} ms, {range}: D_eq = {:?} (corrected {:?}), n = {}, flags {:?}",
-                est.damping_ratio.map(|d| 100.0 * d),
-                est.damping_ratio_corrected.map(|d| 100.0 * d),
-                est.n_points,
-                est.flags
-            );
+            let d_pct = 100.0 * est.damping_ratio.expect("a clean decay gives a number");
+            if window_ms <= 20.0 {
+                assert!(
+                    (2.0..2.5).contains(&d_pct) && est.flags.is_empty(),
+                    "{window_ms} ms {range}: D_eq {d_pct} %, flags {:?}",
+                    est.flags
+                );
+            } else {
+                assert!(
+                    !est.flags.is_empty(),
+                    "{window_ms} ms {range}: {} frames, D_eq {d_pct} % unflagged",
+                    est.n_points
+                );
+            }
         }
     }
 }
