@@ -17,8 +17,9 @@
 //!   [`refine`]: its size re-fitted through the re-solved model;
 //! - [`fit`]: the fit of a model to the recordings (modes and FRFs, eq. 4.8);
 //! - [`procedure`]: runs it all and keeps what pays for its parameters; [`report`]: the
-//!   findings in `diagnosis.json` form and in plain words; [`workers`]: independent re-solves
-//!   on every core.
+//!   findings in `diagnosis.json` form and in plain words; [`output`]: the files of a
+//!   diagnosis (JSON, updated model, modes.csv, report.md, figures); [`workers`]: independent
+//!   re-solves on every core.
 
 pub mod boundary;
 pub mod damping;
