@@ -30,7 +30,7 @@ pub struct MapArgs {
     /// How to read raw or headerless input.
     #[command(flatten)]
     pub input_format: InputFormatArgs,
-    /// Sensor positions (a sensors.csv as in a recording set: id,x,y[,z,dir]); wins over the
+    /// Sensor positions (a sensors.csv as in a recording set: `id,x,y[,z,dir]`); wins over the
     /// recording set's own.
     #[arg(long, value_name = "FILE")]
     pub sensors: Option<PathBuf>,

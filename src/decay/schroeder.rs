@@ -176,7 +176,7 @@ impl DecayEstimator for OnlineSchroeder {
     }
 }
 
-/// The offline oracle: EDC[k] = Σ_{m ≥ k} e[m], summed backwards from the end as written in the
+/// The offline oracle: `EDC[k] = Σ_{m ≥ k} e[m]`, summed backwards from the end as written in the
 /// definition (pyrato's `flip(cumsum(flip(e)))`). Slow to update, obviously correct.
 pub fn backward_integrate(energies: &[f64]) -> Vec<f64> {
     let mut edc = vec![0.0; energies.len()];

@@ -63,7 +63,7 @@ pub const MAX_END_CUT_FRACTION: f64 = 0.3;
 
 impl SubBandPlan {
     /// The plan widened for a record of `record_s` seconds after the analysis start: a band's
-    /// filter needs [`END_CUT_TIME_CONSTANTS`] time constants cut from the end, which for a
+    /// filter needs `END_CUT_TIME_CONSTANTS` time constants cut from the end, which for a
     /// narrow band can be most of a short record (0.76 s for 10 Hz bands, so a 1 s impact
     /// record would lose every low band); no band is made so narrow that its cut exceeds
     /// [`MAX_END_CUT_FRACTION`] of the record. Unchanged for records of 3 s and more.

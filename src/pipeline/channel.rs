@@ -97,7 +97,7 @@ impl ChannelAnalyzer {
     /// the new-hit watch, and per band its estimator's state (frame energies grow with the
     /// decay: 16 bytes per frame and band on top of this).
     ///
-    /// Per band: its estimator and result row (about [`BAND_STATE_BYTES`]) and the decay's frame
+    /// Per band: its estimator and result row (about `BAND_STATE_BYTES`) and the decay's frame
     /// history, 16 bytes per frame, doubled for vector growth, over `history_frames` frames
     /// (what a decay can hold: the input's length when known, capped by `max_decay_s`).
     pub fn buffer_bytes(

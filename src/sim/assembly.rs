@@ -5,7 +5,7 @@
 //!   uz = 0 on both bounding layers and ux = uy = 0 on the lower one (a line support without
 //!   rotational restraint).
 //! - One [`StiffnessTerm`] per region: "plate", then "patch p" for each patch that owns elements
-//!   (SLS patches assembled with `sls.e_inf`), then "edge spring <edge>" (z springs on the edge's
+//!   (SLS patches assembled with `sls.e_inf`), then `"edge spring <edge>"` (z springs on the edge's
 //!   mid-plane line, consistent linear line integration, loss factor 0).
 //! - Mass: consistent element mass plus point masses, each added as m·w wᵀ in x, y and z with the
 //!   mid-plane interpolation weights w of its position (so a rigid translation carries m).

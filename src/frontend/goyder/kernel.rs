@@ -39,7 +39,7 @@ type Lanes<const L: usize> = [f64; L];
 
 /// Feedback coefficients `[c1, c2]` of the all-pole sections of an even-`order` Butterworth
 /// low-pass with cut-off `fc_hz` (bilinear transform with pre-warping): section k computes
-/// y[m] = u[m] + c1·y[m−1] + c2·y[m−2] and has the DC gain 1/(1 − c1 − c2).
+/// `y[m] = u[m] + c1·y[m−1] + c2·y[m−2]` and has the DC gain 1/(1 − c1 − c2).
 pub fn butterworth_allpole(order: usize, fc_hz: f64, fs_hz: f64) -> Vec<[f64; 2]> {
     let k = (std::f64::consts::PI * fc_hz / fs_hz).tan();
     (0..order / 2)

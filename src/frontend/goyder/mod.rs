@@ -1,10 +1,10 @@
 //! Goyder-style filter bank: narrow complex band filters run on the decay reversed in time.
 //!
-//! Per band (METHODS.md §1.1 reconstruction): the decay x[n], n = 0…N−1, is reversed, multiplied
+//! Per band (METHODS.md §1.1 reconstruction): the decay `x[n]`, n = 0…N−1, is reversed, multiplied
 //! by e^{−j2π f_h m/fs} (f_h = arithmetic band middle), low-pass filtered by a Butterworth of
 //! order [`GoyderSettings::order`] with cut-off B/2 (B = band width; as cascaded all-pole
-//! sections with real coefficients acting on the real and imaginary parts, see [`kernel`]), and
-//! reversed back. The result z[n] is
+//! sections with real coefficients acting on the real and imaginary parts, see `kernel`), and
+//! reversed back. The result `z[n]` is
 //! the band's analytic signal shifted to 0 Hz. A growing exponential e^{(σ+jω)t} passes the
 //! filter with its slope unchanged (only the gain |H(σ+jω)| changes), while the filter's own
 //! start-up transient lands at the *end* of the original record; the last `cut_factor / B`
@@ -14,7 +14,7 @@
 //!
 //! Frames: consecutive blocks of `hop = round(frame_period_ms · fs / 1000)` samples from the
 //! onset; frame energy = block mean of 2|z|² (the mean square of the band signal), frame
-//! frequency = f_h + arg(Σ z[m]·conj(z[m−1]))·fs/2π over the block (energy-weighted
+//! frequency = f_h + `arg(Σ z[m]·conj(z[m−1]))`·fs/2π over the block (energy-weighted
 //! instantaneous frequency). Block means keep the Schroeder sum of the frames equal to the
 //! sample-level integral at block boundaries, whatever the envelope's beating.
 //!
