@@ -166,17 +166,49 @@ pub fn solved_bic(
     params: f64,
     locations: f64,
 ) -> Result<f64, SimError> {
-    let model = h.apply(&base.model);
-    let view = view_of(base, &model, h)?;
-    let after = Evidence::gather(measured, view.poles_at(sensors)?);
     let mut explained = Prediction::none(scorer.n());
-    for (k, p) in scorer.pairs.iter().enumerate() {
-        if let Some(q) = after.pairs.iter().find(|q| q.measured == p.measured) {
-            explained.log_frequency[k] = scorer.log_frequency[k] - q.frequency_rel.ln_1p();
-            explained.damping[k] = scorer.damping[k] - q.damping_diff;
+    for (k, effect) in solved_effect(measured, sensors, base, scorer, h)?
+        .into_iter()
+        .enumerate()
+    {
+        if let Some((a, b)) = effect {
+            explained.log_frequency[k] = a;
+            explained.damping[k] = b;
         }
     }
     Ok(scorer.bic(&explained, params, locations))
+}
+
+/// What `h` does to each of `scorer`'s pairs through the re-solved model: the evidence before
+/// (ln f ratio, ΔD) less the evidence after applying it; `None` for a pair the solved model
+/// no longer pairs.
+fn solved_effect(
+    measured: &[Mode],
+    sensors: &[SensorPosition],
+    base: &ModelView,
+    scorer: &Scorer,
+    h: &Hypothesis,
+) -> Result<Vec<Option<(f64, f64)>>, SimError> {
+    let model = h.apply(&base.model);
+    let view = view_of(base, &model, h)?;
+    let after = Evidence::gather(measured, view.poles_at(sensors)?);
+    Ok(scorer
+        .pairs
+        .iter()
+        .enumerate()
+        .map(|(k, p)| {
+            after
+                .pairs
+                .iter()
+                .find(|q| q.measured == p.measured)
+                .map(|q| {
+                    (
+                        scorer.log_frequency[k] - q.frequency_rel.ln_1p(),
+                        scorer.damping[k] - q.damping_diff,
+                    )
+                })
+        })
+        .collect())
 }
 
 /// Most re-solves of one refinement.
@@ -227,18 +259,14 @@ pub fn refit(
         if scan_amp == 0.0 {
             break;
         }
-        let model = h.apply(&base.model);
-        let view = view_of(base, &model, &h)?;
-        let after = Evidence::gather(measured, view.poles_at(sensors)?);
         let scale = amp / scan_amp;
         let mut corrected = scorer.clone();
-        for (k, p) in scorer.pairs.iter().enumerate() {
-            let Some(q) = after.pairs.iter().find(|q| q.measured == p.measured) else {
+        let effects = solved_effect(measured, sensors, base, scorer, &h)?;
+        for (k, effect) in effects.into_iter().enumerate() {
+            // The nonlinear part = the exact effect − the linear one.
+            let Some((exact_a, exact_b)) = effect else {
                 continue;
             };
-            // exact effect = evidence before − evidence after; nonlinear = exact − linear.
-            let exact_a = scorer.log_frequency[k] - q.frequency_rel.ln_1p();
-            let exact_b = scorer.damping[k] - q.damping_diff;
             corrected.log_frequency[k] -= exact_a - scale * cand.prediction.log_frequency[k];
             corrected.damping[k] -= exact_b - scale * cand.prediction.damping[k];
         }

@@ -173,3 +173,25 @@ pub fn region_offset_m(f: &dampscope::diagnose::report::Finding, x: f64, y: f64)
     let r = f.region.as_ref().expect("a region");
     (0.5 * (r.x[0] + r.x[1]) - x).hypot(0.5 * (r.y[0] + r.y[1]) - y)
 }
+
+/// The viscoelastic layer of the `diagnose/*viscoelastic*` sets (x 1.005–1.482, y 1.836–2.510 m,
+/// peak loss factor 0.178): `d` names it alone, its centre within 0.3 m, its peak within 30 %,
+/// and the damping RMS at least halved. Returns the finding for further checks.
+pub fn assert_viscoelastic_layer(
+    d: &dampscope::diagnose::report::Diagnosis,
+) -> &dampscope::diagnose::report::Finding {
+    let physics = physics(d);
+    assert_eq!(physics.len(), 1, "{:?}", d.findings);
+    let f = physics[0];
+    assert_eq!(f.kind, "viscoelastic_damping", "{f:?}");
+    let off = region_offset_m(f, 0.5 * (1.005 + 1.482), 0.5 * (1.836 + 2.510));
+    assert!(off < 0.3, "{off} m: {f:?}");
+    let peak = f.parameters["peak_loss_factor"];
+    assert!(rel_err(peak, 0.178) < 0.3, "{peak}");
+    assert!(
+        d.fit.after.damping_rms <= 0.5 * d.fit.before.damping_rms,
+        "{:?}",
+        d.fit
+    );
+    f
+}
