@@ -6,8 +6,6 @@
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use dampscope::frontend::bands::default_bands;
-use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
-use dampscope::frontend::FrontEnd;
 use dampscope::pipeline::{self, AnalysisConfig, ChannelAnalyzer, FrontEndFactory};
 use dampscope::source::{Block, SignalInfo, Source, SourceError};
 use std::sync::Arc;
@@ -53,16 +51,18 @@ impl Source for Memory {
 /// Every sample goes through the STFT: no early end of the decay.
 fn no_early_end() -> AnalysisConfig {
     AnalysisConfig {
-        end_drop_db: f64::INFINITY,
+        segmentation: dampscope::pipeline::Segmentation {
+            end_drop_db: f64::INFINITY,
+            ..Default::default()
+        },
         ..Default::default()
     }
 }
 
 fn factory(fs: f64) -> FrontEndFactory {
-    let bands = default_bands(fs).unwrap();
-    Arc::new(move || {
-        Ok(Box::new(StftFrontEnd::new(StftSettings::default(), fs, &bands)?) as Box<dyn FrontEnd>)
-    })
+    dampscope::plan::FrontEndSpec::default()
+        .factory(fs, default_bands(fs).unwrap())
+        .unwrap()
 }
 
 fn analyzer(c: &mut Criterion) {

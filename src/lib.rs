@@ -26,6 +26,7 @@ pub mod frontend;
 pub mod modal;
 pub mod output;
 pub mod pipeline;
+pub mod plan;
 pub mod plot;
 pub mod presets;
 pub mod sim;

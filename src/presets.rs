@@ -17,7 +17,7 @@
 pub mod pyrato {
     use crate::decay::estimate::{EstimateSettings, NoiseCompensation};
     use crate::decay::EvaluationRange;
-    use crate::frontend::goyder::FilterDirection;
+    use crate::frontend::FilterDirection;
 
     /// pyfar filters in recording order.
     pub const DIRECTION: FilterDirection = FilterDirection::Forward;
@@ -27,6 +27,17 @@ pub mod pyrato {
     pub const FRAME_PERIOD_MS: f64 = 0.1;
     /// pyrato's EDT limits (`reverberation_time_linear_regression`, T='EDT'), dB.
     pub const EDT_LIMITS_DB: (f64, f64) = (-0.1, -10.1);
+
+    /// Sets `plan` up as pyrato runs: the octave bank forward at order 14 with 0.1 ms frames,
+    /// and [`estimate`] over the plan's own range and minimum points.
+    pub fn apply(plan: &mut crate::plan::AnalysisPlan) {
+        plan.front_end.kind = crate::plan::FrontEndKind::Octave;
+        plan.front_end.direction = DIRECTION;
+        plan.front_end.filter_order = Some(FILTER_ORDER);
+        plan.front_end.frame_period_ms = Some(FRAME_PERIOD_MS);
+        let e = plan.config.estimate;
+        plan.config.estimate = estimate(e.range, e.min_points);
+    }
 
     /// Estimate settings over `range` without dampscope's withholding gates, with pyrato's EDT.
     pub fn estimate(range: EvaluationRange, min_points: usize) -> EstimateSettings {

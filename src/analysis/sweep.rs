@@ -15,12 +15,12 @@ use std::path::Path;
 use crate::decay::estimate::EstimateSettings;
 use crate::decay::{DecayEstimate, EvaluationRange};
 use crate::error::{Error, Result};
-use crate::frontend::goyder::{FilterDirection, GoyderFrontEnd, GoyderSettings};
 use crate::frontend::iec_bands::OCTAVE_RATIO_G;
-use crate::frontend::octave_bank::{OctaveBankFrontEnd, OctaveBankSettings};
-use crate::frontend::stft::{StftFrontEnd, StftSettings};
-use crate::frontend::{Band, FrontEnd};
+use crate::frontend::stft::StftSettings;
+use crate::frontend::{Band, FilterDirection, FrontEnd};
 use crate::pipeline::analyze_decay;
+use crate::plan::{FrontEndKind, FrontEndSpec};
+use crate::source::synth::{decaying_sines, Mode};
 
 /// What the sweep covers.
 #[derive(Clone, Debug, PartialEq)]
@@ -87,43 +87,30 @@ pub struct SweepRow {
     pub flags: String,
 }
 
-/// Σ A e^{−D 2πf t} sin(2πf t − ψ) for `modes` = (f_hz, D, A, ψ_rad).
-pub fn synth_decay(modes: &[(f64, f64, f64, f64)], fs_hz: f64, duration_s: f64) -> Vec<f64> {
-    let n = (fs_hz * duration_s).round().max(0.0) as usize;
-    (0..n)
-        .map(|i| {
-            let t = i as f64 / fs_hz;
-            modes
-                .iter()
-                .map(|&(f, d, a, psi)| {
-                    let w = 2.0 * std::f64::consts::PI * f;
-                    a * (-d * w * t).exp() * (w * t - psi).sin()
-                })
-                .sum()
-        })
-        .collect()
-}
-
+/// The front end of a sweep column and the band it analyses around a mode at `f` Hz.
 fn build(label: &str, fs: f64, f: f64) -> Result<(Box<dyn FrontEnd>, Band)> {
     let w = (0.1 * f).max(10.0);
-    let band = Band {
+    let around = Band {
         center_hz: f,
         nominal_hz: f,
         ..Band::new((f - 0.5 * w).max(0.5), f + 0.5 * w)?
     };
-    Ok(match label {
-        "stft-200ms" | "stft-50ms" => {
-            let window_ms = if label == "stft-200ms" { 200.0 } else { 50.0 };
-            let s = StftSettings {
-                window_ms,
+    let (spec, band) = match label {
+        "stft-200ms" => (FrontEndSpec::default(), around),
+        "stft-50ms" => (
+            FrontEndSpec {
+                stft: StftSettings {
+                    window_ms: 50.0,
+                    ..Default::default()
+                },
                 ..Default::default()
-            };
-            (Box::new(StftFrontEnd::new(s, fs, &[band])?), band)
-        }
-        "goyder" => {
-            let s = GoyderSettings::default();
-            (Box::new(GoyderFrontEnd::new(s, fs, &[band])?), band)
-        }
+            },
+            around,
+        ),
+        "goyder" => (
+            FrontEndSpec::default().with_kind(FrontEndKind::Goyder),
+            around,
+        ),
         _ => {
             let half = OCTAVE_RATIO_G.powf(1.0 / 6.0);
             let third = Band {
@@ -132,24 +119,26 @@ fn build(label: &str, fs: f64, f: f64) -> Result<(Box<dyn FrontEnd>, Band)> {
                 center_hz: f,
                 nominal_hz: f,
             };
-            let s = OctaveBankSettings {
+            let spec = FrontEndSpec {
+                kind: FrontEndKind::Octave,
                 direction: FilterDirection::Reversed,
-                frame_period_ms: 1.0,
+                frame_period_ms: Some(1.0),
                 ..Default::default()
             };
-            (Box::new(OctaveBankFrontEnd::new(s, fs, &[third])?), third)
+            (spec, third)
         }
-    })
+    };
+    Ok((spec.build(fs, &[band])?, band))
 }
 
 fn run_case(cfg: &SweepConfig, pair: bool, f: f64, d: f64) -> Result<Vec<SweepRow>> {
     let t60 = 1.0994 / (f * d);
-    let mut modes = vec![(f, d, 1.0, 0.0)];
+    let mut modes = vec![Mode::new(f, d, 1.0, 0.0)];
     if pair {
-        modes.push((f * 1.012, d, 1.0, 0.5 * std::f64::consts::PI));
+        modes.push(Mode::new(f * 1.012, d, 1.0, 90.0));
     }
     let duration = (0.9 * t60 + 3.0 / (0.1 * f).max(10.0) + 0.3).min(cfg.max_duration_s);
-    let x = synth_decay(&modes, cfg.fs_hz, duration);
+    let x = decaying_sines(&modes, cfg.fs_hz, duration);
     let settings = EstimateSettings {
         range: EvaluationRange::T30,
         ..Default::default()

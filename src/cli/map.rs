@@ -12,8 +12,9 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 
-use super::analyze::{exit_code_of, prepare, PipelineArgs};
-use super::bands_arg::InputFormatArgs;
+use super::analyze::{exit_code_of, prepare};
+use super::args::InputFormatArgs;
+use super::args::PipelineArgs;
 use crate::analysis::maps::{band_maps, BandMap, GlobalDamping, MapError, SubsetMean};
 use crate::output::write_csv_file;
 use crate::output::{TableFormat, TableWriter};

@@ -2,7 +2,7 @@
 //! `run` function, so that the binary stays a thin dispatcher and every command is testable.
 
 pub mod analyze;
-pub mod bands_arg;
+pub mod args;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
@@ -98,18 +98,36 @@ pub fn main_exit_code() -> i32 {
     }
 }
 
-/// The library names settings by their fields; the command line by its flags. Each pair: the
-/// library's words, and what the command line prints instead.
+/// Library fields that the command line sets with a flag of the same name in kebab case
+/// (`min_points` → `--min-points`).
+const FIELDS_WITH_FLAGS: &[&str] = &[
+    "band",
+    "bands",
+    "overlap",
+    "window_ms",
+    "zero_pad",
+    "min_points",
+    "noise_margin_db",
+    "max_curvature_pct",
+    "min_r2",
+    "max_band_hz",
+    "max_decay_s",
+    "onset_level_db",
+    "end_drop_db",
+    "retrigger_db",
+    "retrigger_jump_db",
+    "front_end",
+    "model",
+];
+
+/// The library's words, and what the command line prints instead (besides
+/// [`FIELDS_WITH_FLAGS`]).
 const LIBRARY_TO_FLAGS: &[(&str, &str)] = &[
-    ("invalid setting band:", "invalid setting --band:"),
-    ("invalid setting bands:", "invalid setting --bands:"),
     (
         "invalid setting auto_bands:",
         "invalid setting --bands auto:",
     ),
-    ("invalid setting overlap:", "invalid setting --overlap:"),
-    ("invalid setting window_ms:", "invalid setting --window-ms:"),
-    ("invalid setting zero_pad:", "invalid setting --zero-pad:"),
+    ("a model file (model)", "a model file (--model M.toml)"),
     ("raise the memory limit", "raise it with --max-memory"),
     ("the sample rate (fs_hz)", "the sample rate (--fs HZ)"),
     (
@@ -128,9 +146,32 @@ const LIBRARY_TO_FLAGS: &[(&str, &str)] = &[
 /// `message` (a library error's text) in the command line's words: setting names become the
 /// flags that set them.
 fn in_flags(message: &str) -> String {
+    let fields = FIELDS_WITH_FLAGS
+        .iter()
+        .fold(message.to_string(), |m, field| {
+            m.replace(
+                &format!("invalid setting {field}:"),
+                &format!("invalid setting --{}:", field.replace('_', "-")),
+            )
+        });
     LIBRARY_TO_FLAGS
         .iter()
-        .fold(message.to_string(), |m, (library, flag)| {
-            m.replace(library, flag)
-        })
+        .fold(fields, |m, (library, flag)| m.replace(library, flag))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fields_become_flags() {
+        assert_eq!(
+            in_flags("invalid setting min_points: expected >= 2, got 1"),
+            "invalid setting --min-points: expected >= 2, got 1"
+        );
+        assert_eq!(
+            in_flags("invalid setting bands: model needs a model file (model)"),
+            "invalid setting --bands: model needs a model file (--model M.toml)"
+        );
+    }
 }

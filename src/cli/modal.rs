@@ -6,7 +6,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 
-use super::bands_arg::InputFormatArgs;
+use super::args::InputFormatArgs;
 use crate::modal::model_shapes::{
     match_model, model_modes_at, sensor_positions, ModelMatch, MODEL_FMAX_FACTOR,
 };

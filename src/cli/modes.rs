@@ -38,10 +38,7 @@ pub struct ModesArgs {
 /// Runs `dampscope modes`.
 pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let model = match &args.model {
-        Some(path) => Model::load(path).with_context(|| format!("model {}", path.display()))?,
-        None => Model::reference_plate(),
-    };
+    let model = Model::load_or_reference(args.model.as_deref())?;
     let request = match (args.count, args.fmax) {
         (Some(n), _) => ModeRequest::Count(n),
         (None, Some(f)) => ModeRequest::BelowHz(f),

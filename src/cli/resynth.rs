@@ -96,10 +96,7 @@ fn pct(v: Option<f64>) -> String {
 
 /// Runs `resynth`.
 pub fn run(args: &ResynthArgs) -> anyhow::Result<()> {
-    let mut model = match &args.model {
-        Some(p) => Model::load(p)?,
-        None => Model::reference_plate(),
-    };
+    let mut model = Model::load_or_reference(args.model.as_deref())?;
     if let Some(f) = args.fmax {
         model.output.fmax = f;
     }

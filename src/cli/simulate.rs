@@ -104,10 +104,7 @@ impl SimulateArgs {
 }
 
 fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
-    Ok(match path {
-        Some(p) => Model::load(p)?,
-        None => Model::reference_plate(),
-    })
+    Ok(Model::load_or_reference(path)?)
 }
 
 /// The recording-set pieces of a simulation: sensors (z, mid-plane) and excitation rows.

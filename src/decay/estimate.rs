@@ -180,10 +180,48 @@ pub const LEAKAGE_MARGIN_DB: f64 = 6.0;
 /// so what such a band holds is rounding noise of the strong bands, which decays with them.
 pub const NUMERICAL_FLOOR_DB: f64 = 100.0;
 
+/// Default of [`EstimateSettings::range`]: T30 (−5 … −35 dB), the report's range.
+pub const DEFAULT_RANGE: EvaluationRange = EvaluationRange::T30;
+
+impl EstimateSettings {
+    /// Checks the settings; an error names the field and says what was expected.
+    pub fn validate(&self) -> crate::error::Result<()> {
+        use crate::error::Error;
+        if self.min_points < 2 {
+            return Err(Error::setting(
+                "min_points",
+                format!("expected >= 2, got {}", self.min_points),
+            ));
+        }
+        if !(self.noise_margin_db.is_finite() && self.noise_margin_db >= 0.0) {
+            return Err(Error::setting(
+                "noise_margin_db",
+                format!("expected a finite value >= 0, got {}", self.noise_margin_db),
+            ));
+        }
+        if self.max_curvature_pct.is_nan() || self.max_curvature_pct < 0.0 {
+            return Err(Error::setting(
+                "max_curvature_pct",
+                format!(
+                    "expected a value >= 0 (or inf), got {}",
+                    self.max_curvature_pct
+                ),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.min_r2) {
+            return Err(Error::setting(
+                "min_r2",
+                format!("expected 0 <= r2 <= 1, got {}", self.min_r2),
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for EstimateSettings {
     fn default() -> Self {
         EstimateSettings {
-            range: EvaluationRange::T30,
+            range: DEFAULT_RANGE,
             min_points: DEFAULT_MIN_POINTS,
             curvature_limit_pct: DEFAULT_CURVATURE_LIMIT_PCT,
             noise_margin_db: DEFAULT_NOISE_MARGIN_DB,

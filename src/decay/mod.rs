@@ -10,6 +10,7 @@ pub mod damping;
 pub mod estimate;
 pub mod leakage;
 pub mod lundeby;
+pub mod oracle;
 pub mod range;
 pub mod regression;
 pub mod restarts;
@@ -20,6 +21,11 @@ pub use range::EvaluationRange;
 pub use schroeder::OnlineSchroeder;
 
 /// Consumes one band's energy sequence, frame by frame, and estimates its decay.
+///
+/// The seam between the front end's frames and the estimate: the pipeline drives one estimator
+/// per band through this trait only ([`crate::pipeline::analyze_decay_with`] takes any). Two
+/// implementations: [`OnlineSchroeder`] (O(1) per frame, compensated sums) and the plain offline
+/// oracle [`oracle::BatchSchroeder`] that the tests hold it to.
 pub trait DecayEstimator: Send {
     /// Adds the next frame: its band energy (≥ 0) and the frequency present in it (Hz, or NaN).
     fn push_frame(&mut self, energy: f64, frequency_hz: f64);
@@ -32,4 +38,11 @@ pub trait DecayEstimator: Send {
 
     /// Forgets everything, ready for a new decay.
     fn reset(&mut self);
+
+    /// Total energy of the frames so far (the leakage test compares bands by it).
+    fn total_energy(&self) -> f64;
+
+    /// The frame energies the estimate uses: from the band's own start (its energy within
+    /// [`schroeder::DECAY_START_LEVEL_DB`] of its peak) on. The test for merged hits reads it.
+    fn decay_energies(&self) -> &[f64];
 }

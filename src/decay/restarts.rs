@@ -6,7 +6,7 @@
 //! no more than [`RESTART_LEVEL_DB`] below the band's peak. A decaying
 //! sum of modes cannot do that, whatever its beating: rising from a beat null by 10 dB of energy
 //! takes longer than the gap unless the compared frames still hold the envelope before the null,
-//! which is higher (see [`crate::frontend::onset::RetriggerWatch`] for the same test on samples).
+//! which is higher (see [`crate::pipeline::segment::onset::RetriggerWatch`] for the same test on samples).
 
 /// Energy rise, in dB, that marks a restart (×10 in energy, ×3.16 in amplitude).
 pub const RESTART_JUMP_DB: f64 = 10.0;

@@ -79,11 +79,6 @@ impl OnlineSchroeder {
         }
     }
 
-    /// Total energy of the frames so far.
-    pub fn total_energy(&self) -> f64 {
-        self.running.value()
-    }
-
     /// EDC at frame `k` (k < frames): Σ_{m ≥ k} e_m, summed backwards with compensation.
     pub fn edc_at(&self, k: usize) -> f64 {
         let mut acc = CompensatedSum::default();
@@ -120,18 +115,7 @@ impl OnlineSchroeder {
     /// The first frame of the decay proper: the first whose energy comes within
     /// [`DECAY_START_LEVEL_DB`] of the band's peak (0 for a band without energy).
     pub fn start_frame(&self) -> usize {
-        let peak = self.energies.iter().cloned().fold(0.0, f64::max);
-        let level = peak * 10f64.powf(-DECAY_START_LEVEL_DB / 10.0);
-        if peak > 0.0 {
-            self.energies.iter().position(|&e| e >= level).unwrap_or(0)
-        } else {
-            0
-        }
-    }
-
-    /// The frame energies from [`OnlineSchroeder::start_frame`] on: what the estimate uses.
-    pub fn decay_energies(&self) -> &[f64] {
-        &self.energies[self.start_frame()..]
+        decay_start_frame(&self.energies)
     }
 
     /// The estimate from the frames seen so far, from the band's own start on.
@@ -173,6 +157,26 @@ impl DecayEstimator for OnlineSchroeder {
         self.energies.clear();
         self.frequencies_hz.clear();
         self.running = CompensatedSum::default();
+    }
+
+    fn total_energy(&self) -> f64 {
+        self.running.value()
+    }
+
+    fn decay_energies(&self) -> &[f64] {
+        &self.energies[self.start_frame()..]
+    }
+}
+
+/// The first frame of a band's decay proper: the first whose energy comes within
+/// [`DECAY_START_LEVEL_DB`] of the band's peak (0 for a band without energy).
+pub fn decay_start_frame(energies: &[f64]) -> usize {
+    let peak = energies.iter().cloned().fold(0.0, f64::max);
+    let level = peak * 10f64.powf(-DECAY_START_LEVEL_DB / 10.0);
+    if peak > 0.0 {
+        energies.iter().position(|&e| e >= level).unwrap_or(0)
+    } else {
+        0
     }
 }
 

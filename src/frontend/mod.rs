@@ -7,13 +7,14 @@
 
 pub mod auto_bands;
 pub mod bands;
+pub mod buffered;
 pub mod goyder;
 pub mod iec_bands;
 pub mod octave_bank;
-pub mod onset;
 pub mod stft;
 
 pub use bands::Band;
+pub use buffered::FilterDirection;
 
 /// How finely a front end resolves time and frequency, for side-by-side comparisons.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -251,14 +252,6 @@ pub(crate) fn cascade_group_delay_samples(
         .into_iter()
         .map(|[b0, b1, b2, a1, a2]| delay([b0, b1, b2]) - delay([1.0, a1, a2]))
         .sum()
-}
-
-/// Appends `samples` to a decay buffer of at most `max_samples`; returns true when some did not
-/// fit (the buffering banks then flag the decay as overflowed instead of growing without bound).
-pub(crate) fn buffer_bounded(buffer: &mut Vec<f64>, max_samples: usize, samples: &[f64]) -> bool {
-    let room = max_samples.saturating_sub(buffer.len());
-    buffer.extend_from_slice(&samples[..samples.len().min(room)]);
-    samples.len() > room
 }
 
 /// Emits the frames of a buffering bank: band b holds frames `0 .. band_frames[b]` (its own

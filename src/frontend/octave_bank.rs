@@ -18,7 +18,7 @@
 use biquad::{Biquad, Coefficients, DirectForm2Transposed};
 use rustfft::num_complex::Complex;
 
-use super::goyder::FilterDirection;
+use super::buffered::{DecayBuffer, FilterDirection};
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
 use crate::error::{Error, Result};
 
@@ -43,7 +43,7 @@ impl Default for OctaveBankSettings {
         OctaveBankSettings {
             order: 3,
             frame_period_ms: 2.0,
-            direction: FilterDirection::Reversed,
+            direction: FilterDirection::default(),
             cut_factor: super::BANK_CUT_FACTOR,
             max_decay_s: 60.0,
         }
@@ -146,8 +146,7 @@ pub struct OctaveBankFrontEnd {
     /// Samples before the onset a reversed decay starts with (the widest reach, cut_factor / B_min).
     pre_roll: usize,
     max_samples: usize,
-    buffer: Vec<f64>,
-    overflowed: bool,
+    buffer: DecayBuffer,
     acc: Vec<f64>,
     in_frame: usize,
     energy: Vec<f64>,
@@ -212,6 +211,7 @@ impl OctaveBankFrontEnd {
             .fold(0.0, f64::max)
             / sample_rate_hz;
         let nb = bands.len();
+        let max_samples = (settings.max_decay_s * sample_rate_hz) as usize;
         Ok(OctaveBankFrontEnd {
             bands: bands.to_vec(),
             settings,
@@ -229,9 +229,8 @@ impl OctaveBankFrontEnd {
             rise_s,
             band_cut_samples,
             pre_roll,
-            max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
-            buffer: Vec::new(),
-            overflowed: false,
+            max_samples,
+            buffer: DecayBuffer::new(max_samples + pre_roll),
             acc: vec![0.0; nb],
             in_frame: 0,
             energy: vec![0.0; nb],
@@ -242,7 +241,7 @@ impl OctaveBankFrontEnd {
     /// True when the current decay was longer than `max_decay_s` (reversed mode) and its end
     /// was ignored.
     pub fn overflowed(&self) -> bool {
-        self.overflowed
+        self.buffer.overflowed()
     }
 
     fn clear_filters(&mut self) {
@@ -341,11 +340,7 @@ impl FrontEnd for OctaveBankFrontEnd {
                 }
             }
             FilterDirection::Reversed => {
-                self.overflowed |= super::buffer_bounded(
-                    &mut self.buffer,
-                    self.max_samples + self.pre_roll,
-                    samples,
-                );
+                self.buffer.push(samples);
             }
         }
     }
@@ -356,7 +351,7 @@ impl FrontEnd for OctaveBankFrontEnd {
             self.clear_filters();
             return;
         }
-        let buffer = std::mem::take(&mut self.buffer);
+        let buffer = self.buffer.take();
         // Each band keeps the frames before its own transient zone; the widest band the most.
         let band_frames: Vec<usize> = self
             .band_cut_samples
@@ -388,18 +383,16 @@ impl FrontEnd for OctaveBankFrontEnd {
         }
         super::emit_band_frames(sink, &frames, &freqs, &band_frames);
         self.clear_filters();
-        self.buffer = buffer;
-        self.buffer.clear();
+        self.buffer.give_back(buffer);
     }
 
     fn reset(&mut self) {
-        self.buffer.clear();
-        self.overflowed = false;
+        self.buffer.reset();
         self.clear_filters();
     }
 
     fn decay_cut_short(&self) -> bool {
-        self.overflowed
+        self.buffer.overflowed()
     }
 
     fn pre_roll_samples(&self) -> usize {
@@ -408,12 +401,7 @@ impl FrontEnd for OctaveBankFrontEnd {
 
     fn begin_decay(&mut self, pre_roll: &[f64]) {
         if self.settings.direction == FilterDirection::Reversed {
-            // Zeros where the input has less (a record that starts at its onset): the backward
-            // filters' output before the onset is what is kept, not the input there.
-            let from = pre_roll.len().saturating_sub(self.pre_roll);
-            let zeros = self.pre_roll - (pre_roll.len() - from);
-            self.buffer.resize(zeros, 0.0);
-            self.buffer.extend_from_slice(&pre_roll[from..]);
+            self.buffer.start_with_pre_roll(pre_roll, self.pre_roll);
         }
     }
 

@@ -27,12 +27,19 @@ pub struct StftSettings {
     pub zero_pad: usize,
 }
 
+/// Default of [`StftSettings::window_ms`]: the report's 200 ms Hann window.
+pub const DEFAULT_WINDOW_MS: f64 = 200.0;
+/// Default of [`StftSettings::overlap`]: half a window between frames.
+pub const DEFAULT_OVERLAP: f64 = 0.5;
+/// Default of [`StftSettings::zero_pad`]: no zero padding.
+pub const DEFAULT_ZERO_PAD: usize = 1;
+
 impl Default for StftSettings {
     fn default() -> Self {
         StftSettings {
-            window_ms: 200.0,
-            overlap: 0.5,
-            zero_pad: 1,
+            window_ms: DEFAULT_WINDOW_MS,
+            overlap: DEFAULT_OVERLAP,
+            zero_pad: DEFAULT_ZERO_PAD,
         }
     }
 }

@@ -5,16 +5,35 @@ use crate::decay::estimate::EstimateSettings;
 use crate::decay::leakage::{flag_leakage, BandLevel, LeakageModel};
 use crate::decay::restarts::first_restart;
 use crate::decay::{DecayEstimate, DecayEstimator, Flag, OnlineSchroeder};
-use crate::frontend::{Frame, FrontEnd};
+use crate::frontend::{Band, Frame, FrontEnd};
 
-/// Estimates every band of one decay, given from its onset, in one go (no threads).
+/// Estimates every band of one decay, given from its onset, in one go (no threads), with the
+/// online Schroeder estimator.
 pub fn analyze_decay(
     samples: &[f64],
     front_end: &mut dyn FrontEnd,
     settings: &EstimateSettings,
 ) -> Vec<DecayEstimate> {
+    analyze_decay_with(samples, front_end, |band, frame_period_s| {
+        OnlineSchroeder::new(frame_period_s, band.center_hz, *settings)
+    })
+}
+
+/// [`analyze_decay`] with any [`DecayEstimator`]: `new_estimator(band, frame_period_s)` makes
+/// one per band. The cross-band tests (resolution, leakage, merged hits) are the same.
+pub fn analyze_decay_with<E: DecayEstimator>(
+    samples: &[f64],
+    front_end: &mut dyn FrontEnd,
+    new_estimator: impl Fn(&Band, f64) -> E,
+) -> Vec<DecayEstimate> {
     front_end.reset();
-    let mut trackers = BandTrackers::new(front_end, settings, f64::INFINITY);
+    let period = front_end.resolution().frame_period_s;
+    let estimators = front_end
+        .bands()
+        .iter()
+        .map(|b| new_estimator(b, period))
+        .collect();
+    let mut trackers = BandTrackers::new(estimators, f64::INFINITY);
     front_end.process(samples, &mut |f: Frame<'_>| trackers.push(f));
     front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
     let cut_short = front_end.decay_cut_short();
@@ -50,9 +69,9 @@ impl LeakageModel for FrontEndLeakage<'_> {
 /// The tests across the bands of one decay: a band narrower than the front end resolves gives
 /// no number ([`Flag::BelowResolution`]), nor does a band whose decay is another band's
 /// ([`Flag::Leakage`], see [`crate::decay::leakage`]) or holds a new hit ([`Flag::MergedHits`]).
-pub(super) fn judge_bands(
+pub(super) fn judge_bands<E: DecayEstimator>(
     front_end: &dyn FrontEnd,
-    estimators: &[OnlineSchroeder],
+    estimators: &[E],
     estimates: &mut [DecayEstimate],
 ) {
     let resolution = front_end.resolution();
@@ -83,23 +102,19 @@ pub(super) fn judge_bands(
 }
 
 /// Per-band estimators plus the end-of-decay test.
-pub(super) struct BandTrackers {
-    pub(super) estimators: Vec<OnlineSchroeder>,
+pub(super) struct BandTrackers<E: DecayEstimator = OnlineSchroeder> {
+    pub(super) estimators: Vec<E>,
     peak: Vec<f64>,
     end_factor: f64,
     pub(super) ended: bool,
 }
 
-impl BandTrackers {
-    pub(super) fn new(fe: &dyn FrontEnd, settings: &EstimateSettings, end_drop_db: f64) -> Self {
-        let period = fe.resolution().frame_period_s;
+impl<E: DecayEstimator> BandTrackers<E> {
+    /// Trackers over one estimator per band; a decay ends when every band fell `end_drop_db`.
+    pub(super) fn new(estimators: Vec<E>, end_drop_db: f64) -> Self {
         BandTrackers {
-            estimators: fe
-                .bands()
-                .iter()
-                .map(|b| OnlineSchroeder::new(period, b.center_hz, *settings))
-                .collect(),
-            peak: vec![0.0; fe.bands().len()],
+            peak: vec![0.0; estimators.len()],
+            estimators,
             end_factor: 10f64.powf(-end_drop_db / 10.0),
             ended: false,
         }

@@ -1,9 +1,10 @@
 //! One channel's stream: decay onsets, new hits, the front end and the band estimators.
 
 use super::bands::{judge_bands, BandTrackers};
-use super::{AnalysisConfig, ResultRow, RETRIGGER_MIN_FREQUENCY_HZ};
+use super::segment::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
+use super::segment::RETRIGGER_MIN_FREQUENCY_HZ;
+use super::{AnalysisConfig, ResultRow};
 use crate::decay::{DecayEstimate, DecayEstimator, Flag};
-use crate::frontend::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
 use crate::frontend::{Frame, FrontEnd};
 
 enum State {
@@ -60,9 +61,9 @@ impl ChannelAnalyzer {
             .iter()
             .map(|b| b.hi_hz <= nyquist * (1.0 + 1e-12))
             .collect();
-        let (lookahead, cap) = onset_sizes(config.onset_lookahead_s, sample_rate_hz);
+        let (lookahead, cap) = onset_sizes(config.segmentation.onset_lookahead_s, sample_rate_hz);
         let onset = OnsetSettings {
-            level_db: config.onset_level_db,
+            level_db: config.segmentation.onset_level_db,
             lookahead_samples: lookahead,
             max_buffer_samples: cap,
             pre_roll_samples: front_end.pre_roll_samples(),
@@ -75,13 +76,26 @@ impl ChannelAnalyzer {
             .max(RETRIGGER_MIN_FREQUENCY_HZ);
         let gap = ((sample_rate_hz / (4.0 * lowest_hz)).ceil() as usize).min(lookahead);
         ChannelAnalyzer {
-            trackers: BandTrackers::new(&*front_end, &config.estimate, config.end_drop_db),
+            trackers: BandTrackers::new(
+                front_end
+                    .bands()
+                    .iter()
+                    .map(|b| {
+                        crate::decay::OnlineSchroeder::new(
+                            front_end.resolution().frame_period_s,
+                            b.center_hz,
+                            config.estimate,
+                        )
+                    })
+                    .collect(),
+                config.segmentation.end_drop_db,
+            ),
             name,
             sample_rate_hz,
             front_end,
             band_in_range,
             detector: OnsetDetector::new(onset, 0.0),
-            watch: RetriggerWatch::new(lookahead, gap, config.retrigger_jump_db),
+            watch: RetriggerWatch::new(lookahead, gap, config.segmentation.retrigger_jump_db),
             retriggered: false,
             state: State::Searching,
             decays: 0,
@@ -106,13 +120,13 @@ impl ChannelAnalyzer {
         history_frames: f64,
         config: &AnalysisConfig,
     ) -> f64 {
-        let (lookahead, cap) = onset_sizes(config.onset_lookahead_s, sample_rate_hz);
+        let (lookahead, cap) = onset_sizes(config.segmentation.onset_lookahead_s, sample_rate_hz);
         (cap * 8 + lookahead * 24) as f64
             + n_bands as f64 * (BAND_STATE_BYTES as f64 + 32.0 * history_frames)
     }
 
     fn max_decay_samples(&self) -> u64 {
-        self.config.max_decay_s.map_or(u64::MAX, |s| {
+        self.config.segmentation.max_decay_s.map_or(u64::MAX, |s| {
             (s * self.sample_rate_hz).round().max(1.0) as u64
         })
     }
@@ -187,7 +201,7 @@ impl ChannelAnalyzer {
         self.decays += 1;
         self.state = State::Searching;
         self.detector
-            .rearm(self.last_peak * 10f64.powf(-self.config.retrigger_db / 20.0));
+            .rearm(self.last_peak * 10f64.powf(-self.config.segmentation.retrigger_db / 20.0));
     }
 
     fn start_decay(&mut self, onset_index: u64, pre_roll: &[f64], first: &[f64], peak: f64) {
@@ -197,7 +211,7 @@ impl ChannelAnalyzer {
         self.last_peak = peak;
         self.retriggered = false;
         self.watch.restart(
-            peak * 10f64.powf(-self.config.retrigger_db / 20.0),
+            peak * 10f64.powf(-self.config.segmentation.retrigger_db / 20.0),
             first.len(),
         );
         self.state = State::Decaying {

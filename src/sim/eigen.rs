@@ -118,6 +118,13 @@ pub fn reference_stiffness(system: &FeSystem) -> Result<SparseColMat<usize, f64>
     sparse_combination(system.n_free, &parts, "K0")
 }
 
+/// The lowest modes of a model: assembled, then solved with default [`EigenOptions`] (for
+/// callers that need the modes and not the matrices).
+pub fn model_modes(model: &super::model::Model, request: ModeRequest) -> Result<Modes, SimError> {
+    let system = super::assembly::assemble(model)?;
+    lowest_modes(&system, request)
+}
+
 /// The lowest modes with default [`EigenOptions`].
 pub fn lowest_modes(system: &FeSystem, request: ModeRequest) -> Result<Modes, SimError> {
     lowest_modes_with(system, request, &EigenOptions::default()).map(|(m, _)| m)

@@ -322,6 +322,12 @@ impl Model {
         Ok(model)
     }
 
+    /// The model in `path`, or the reference plate when none is given (what `simulate`,
+    /// `modes` and `resynth` do without `--model`).
+    pub fn load_or_reference(path: Option<&Path>) -> Result<Model, SimError> {
+        path.map_or_else(|| Ok(Model::reference_plate()), Model::load)
+    }
+
     /// Reads, parses and validates a model file; relative paths inside resolve against its
     /// directory.
     pub fn load(path: &Path) -> Result<Model, SimError> {

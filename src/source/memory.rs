@@ -62,6 +62,10 @@ impl Source for MemorySource {
     }
 }
 
+/// The most samples per channel any input is read whole (2^27: 47 min at 48 kHz, 1 GiB per
+/// channel as f64): mode-centred bands and `compare` read their input whole, bounded by this.
+pub const MAX_WHOLE_SAMPLES: usize = 1 << 27;
+
 /// Reads every sample of `source` into memory, refusing more than `max_frames` per channel.
 pub fn read_all(source: &mut dyn Source, max_frames: usize) -> Result<Vec<Vec<f64>>, SourceError> {
     let mut data: Vec<Vec<f64>> = vec![Vec::new(); source.info().channels()];

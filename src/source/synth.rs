@@ -30,6 +30,16 @@ pub struct Mode {
 }
 
 impl Mode {
+    /// A mode at `frequency_hz` with damping ratio `damping_ratio`, amplitude and phase ψ (deg).
+    pub fn new(frequency_hz: f64, damping_ratio: f64, amplitude: f64, phase_deg: f64) -> Self {
+        Mode {
+            frequency_hz,
+            damping_ratio,
+            amplitude,
+            phase_deg,
+        }
+    }
+
     /// Value of this mode at time `t_s` seconds.
     pub fn value(&self, t_s: f64) -> f64 {
         let w = std::f64::consts::TAU * self.frequency_hz;
@@ -205,6 +215,17 @@ pub fn synthesize(spec: &SynthSpec) -> Vec<f64> {
         out.extend_from_slice(&block.channels[0]);
     }
     out
+}
+
+/// Eq. 4.5 without noise, `duration_s` at `fs_hz`: the decay every synthetic study starts from.
+pub fn decaying_sines(modes: &[Mode], fs_hz: f64, duration_s: f64) -> Vec<f64> {
+    synthesize(&SynthSpec {
+        modes: modes.to_vec(),
+        sample_rate_hz: fs_hz,
+        duration_s,
+        snr_db: None,
+        seed: 0,
+    })
 }
 
 /// A one-channel [`Source`] (`ch0`) generating eq. 4.5 block by block.

@@ -217,7 +217,7 @@ fn a_bad_setting_is_named_by_its_flag() {
     for (flag, value) in [
         ("--overlap", "1.5"),
         ("--window-ms", "0.1"),
-        ("--bands", "5:1:1"),
+        ("--min-points", "1"),
     ] {
         let out = dampscope(&["analyze", "-", flag, value], &wav);
         let err = String::from_utf8_lossy(&out.stderr);
@@ -227,6 +227,14 @@ fn a_bad_setting_is_named_by_its_flag() {
             "{flag}: {err}"
         );
     }
+    // A band layout is checked as the command line is parsed: a usage error naming the flag.
+    let out = dampscope(&["analyze", "-", "--bands", "5:1:1"], &wav);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("'--bands") && err.contains("expected 0 <= LO < HI"),
+        "{err}"
+    );
     let settings = dampscope::frontend::stft::StftSettings {
         overlap: 1.5,
         ..Default::default()

@@ -5,7 +5,8 @@ use dampscope::decay::estimate::EstimateSettings;
 use dampscope::decay::{DecayEstimate, EvaluationRange, Flag};
 use dampscope::frontend::auto_bands::{auto_bands, AutoBandSettings};
 use dampscope::frontend::bands::Band;
-use dampscope::frontend::goyder::{FilterDirection, GoyderFrontEnd, GoyderSettings};
+use dampscope::frontend::goyder::{GoyderFrontEnd, GoyderSettings};
+use dampscope::frontend::FilterDirection;
 use dampscope::frontend::{Frame, FrontEnd};
 use dampscope::pipeline::analyze_decay;
 

@@ -6,11 +6,11 @@ use std::path::PathBuf;
 use crate::common::{decaying_sines, rel_err};
 use dampscope::decay::estimate::EstimateSettings;
 use dampscope::decay::{DecayEstimate, EvaluationRange, Flag};
-use dampscope::frontend::goyder::FilterDirection;
 use dampscope::frontend::iec_bands::{iec_bands, OctaveFraction};
 use dampscope::frontend::octave_bank::{
     butterworth_bandpass, OctaveBankFrontEnd, OctaveBankSettings,
 };
+use dampscope::frontend::FilterDirection;
 use dampscope::frontend::{Band, FrontEnd};
 use dampscope::pipeline::analyze_decay;
 

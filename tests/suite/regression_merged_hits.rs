@@ -112,7 +112,10 @@ fn a_hit_before_the_last_decay_reached_the_floor_starts_a_new_decay() {
 fn merged_hits_give_no_number_when_splitting_is_off() {
     let times: Vec<f64> = (0..5).map(|k| 4.0 * k as f64).collect();
     let config = AnalysisConfig {
-        retrigger_jump_db: f64::INFINITY,
+        segmentation: dampscope::pipeline::Segmentation {
+            retrigger_jump_db: f64::INFINITY,
+            ..Default::default()
+        },
         ..Default::default()
     };
     let rows = analyse(hit_stream(&times, 20.0, 1), &config);

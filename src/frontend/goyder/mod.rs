@@ -29,19 +29,10 @@ mod kernel;
 pub use kernel::butterworth_allpole;
 use kernel::{band_design, Kernel, RESYNC_SAMPLES};
 
-use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
+use super::buffered::DecayBuffer;
+pub use super::buffered::FilterDirection;
+use super::{Band, FrameSink, FrontEnd, Resolution};
 use crate::error::{Error, Result};
-
-/// In which time direction a band filter runs over the decay.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum FilterDirection {
-    /// Causal filtering in recording order: the filter's ringing smears the early decay
-    /// (biased when B·T60 ≲ 16).
-    Forward,
-    /// Filtering the time-reversed decay and reversing back: the decay rate is preserved.
-    Reversed,
-}
 
 /// Settings of the Goyder-style filter bank.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -69,7 +60,7 @@ impl Default for GoyderSettings {
             frame_period_ms: 1.0,
             cut_factor: super::BANK_CUT_FACTOR,
             max_decay_s: 60.0,
-            direction: FilterDirection::Reversed,
+            direction: FilterDirection::default(),
         }
     }
 }
@@ -81,9 +72,7 @@ pub struct GoyderFrontEnd {
     sample_rate_hz: f64,
     hop: usize,
     band_cut_samples: Vec<usize>,
-    max_samples: usize,
-    buffer: Vec<f64>,
-    overflowed: bool,
+    buffer: DecayBuffer,
     kernel: Kernel,
     /// Per band: heterodyne frequency (Hz) and low-pass sections as `[b0, b1, b2, a1, a2]`
     /// with the DC gain in b0 (for [`FrontEnd::mode_gain`]).
@@ -131,9 +120,7 @@ impl GoyderFrontEnd {
             sample_rate_hz,
             hop,
             band_cut_samples,
-            max_samples: (settings.max_decay_s * sample_rate_hz) as usize,
-            buffer: Vec::new(),
-            overflowed: false,
+            buffer: DecayBuffer::new((settings.max_decay_s * sample_rate_hz) as usize),
             kernel: Kernel::new(bands, settings.order, sample_rate_hz),
             designs: bands
                 .iter()
@@ -151,7 +138,7 @@ impl GoyderFrontEnd {
 
     /// True when the current decay was longer than `max_decay_s` and its end was ignored.
     pub fn overflowed(&self) -> bool {
-        self.overflowed
+        self.buffer.overflowed()
     }
 
     /// Samples dropped at the end of each decay for the widest band (its filter transient
@@ -179,7 +166,7 @@ impl GoyderFrontEnd {
 impl FrontEnd for GoyderFrontEnd {
     fn memory_bytes(&self) -> usize {
         // The decay buffer (Goyder always buffers) plus per-band filters and frames.
-        self.max_samples.saturating_mul(8) + self.bands.len() * 512
+        self.buffer.capacity_bytes() + self.bands.len() * 512
     }
 
     fn bands(&self) -> &[Band] {
@@ -191,11 +178,11 @@ impl FrontEnd for GoyderFrontEnd {
     }
 
     fn process(&mut self, samples: &[f64], _sink: &mut dyn FrameSink) {
-        self.overflowed |= super::buffer_bounded(&mut self.buffer, self.max_samples, samples);
+        self.buffer.push(samples);
     }
 
     fn finish(&mut self, sink: &mut dyn FrameSink) {
-        let n_total = self.buffer.len();
+        let n_total = self.buffer.samples().len();
         let keep = n_total.saturating_sub(self.cut_samples());
         let hop = self.hop;
         let n_frames = keep / hop;
@@ -210,7 +197,7 @@ impl FrontEnd for GoyderFrontEnd {
         let fs = self.sample_rate_hz;
         let kernel = &mut self.kernel;
         kernel.clear();
-        let buffer = &self.buffer;
+        let buffer = self.buffer.samples();
         let mut flush = |kernel: &mut Kernel, k: usize| {
             let range = k * nb..(k + 1) * nb;
             kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
@@ -261,28 +248,17 @@ impl FrontEnd for GoyderFrontEnd {
             .iter()
             .map(|c| n_total.saturating_sub(*c) / hop)
             .collect();
-        let mut active = vec![true; nb];
-        for k in 0..n_frames {
-            for (a, nf) in active.iter_mut().zip(&band_frames) {
-                *a = k < *nf;
-            }
-            sink.frame(Frame {
-                energy: &energy[k * nb..(k + 1) * nb],
-                frequency_hz: &freq[k * nb..(k + 1) * nb],
-                active: (!active.iter().all(|a| *a)).then_some(active.as_slice()),
-            });
-        }
+        super::emit_band_frames(sink, &energy, &freq, &band_frames);
         self.buffer.clear();
     }
 
     fn reset(&mut self) {
-        self.buffer.clear();
-        self.overflowed = false;
+        self.buffer.reset();
         self.kernel.clear();
     }
 
     fn decay_cut_short(&self) -> bool {
-        self.overflowed
+        self.buffer.overflowed()
     }
 
     fn name(&self) -> &'static str {

@@ -7,21 +7,14 @@ use dampscope::frontend::bands::Band;
 use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
 use dampscope::pipeline::analyze_decay;
 
-/// The report's eq. 4.5: Σ A e^{−D 2π f t} sin(2π f t − ψ), modes as (f_hz, D, A, ψ_deg).
+/// The report's eq. 4.5 (the library's [`dampscope::source::synth::decaying_sines`]), modes as
+/// (f_hz, D, A, ψ_deg).
 pub fn decaying_sines(modes: &[(f64, f64, f64, f64)], fs: f64, seconds: f64) -> Vec<f64> {
-    let n = (fs * seconds).round() as usize;
-    (0..n)
-        .map(|i| {
-            let t = i as f64 / fs;
-            modes
-                .iter()
-                .map(|&(f, d, a, psi)| {
-                    let w = 2.0 * std::f64::consts::PI * f;
-                    a * (-d * w * t).exp() * (w * t - psi.to_radians()).sin()
-                })
-                .sum()
-        })
-        .collect()
+    let modes: Vec<dampscope::source::synth::Mode> = modes
+        .iter()
+        .map(|&(f, d, a, psi)| dampscope::source::synth::Mode::new(f, d, a, psi))
+        .collect();
+    dampscope::source::synth::decaying_sines(&modes, fs, seconds)
 }
 
 /// Analyses `x` (starting at its onset) with an STFT of `window_ms` in one band.

@@ -1,0 +1,105 @@
+//! Segmentation: where, in one channel's stream, decays start and end.
+//!
+//! A decay starts at its onset (the first sample within `onset_level_db` of its peak,
+//! [`onset`]); it ends when every band fell `end_drop_db` below its peak, after `max_decay_s`,
+//! when a new hit comes (a sample `retrigger_jump_db` above the signal before it), or with the
+//! input. After a decay, a sample within `retrigger_db` of its peak starts the next one.
+
+pub mod onset;
+
+use crate::error::{Error, Result};
+
+/// How decays are found in a stream.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct Segmentation {
+    /// Onset: first sample within this many dB of the peak ([`DEFAULT_ONSET_LEVEL_DB`]).
+    pub onset_level_db: f64,
+    /// Onset: the peak is settled after this long without a larger sample, s
+    /// ([`DEFAULT_ONSET_LOOKAHEAD_S`]).
+    pub onset_lookahead_s: f64,
+    /// A decay ends after this long, s (`None`: at the end of the input, or by `end_drop_db`).
+    pub max_decay_s: Option<f64>,
+    /// A decay ends when every band's energy is this far below its peak, dB
+    /// ([`DEFAULT_END_DROP_DB`]).
+    pub end_drop_db: f64,
+    /// After a decay, a new one starts at a sample within this many dB of the last peak
+    /// ([`DEFAULT_RETRIGGER_DB`]).
+    pub retrigger_db: f64,
+    /// During a decay, a sample that high and this many dB above the preceding signal (before
+    /// its rise) is a new hit: the decay ends there and a new one starts
+    /// ([`DEFAULT_RETRIGGER_JUMP_DB`]; infinity never splits).
+    pub retrigger_jump_db: f64,
+}
+
+/// Default of [`Segmentation::onset_level_db`]: a decay starts at its first sample within
+/// 20 dB of its peak.
+pub const DEFAULT_ONSET_LEVEL_DB: f64 = 20.0;
+
+/// Default of [`Segmentation::onset_lookahead_s`]: the peak is settled after 0.1 s.
+pub const DEFAULT_ONSET_LOOKAHEAD_S: f64 = 0.1;
+
+/// Default of [`Segmentation::end_drop_db`]: a decay ends once every band fell 100 dB.
+pub const DEFAULT_END_DROP_DB: f64 = 100.0;
+
+/// Default of [`Segmentation::retrigger_db`]: a new decay starts within 20 dB of the last peak.
+pub const DEFAULT_RETRIGGER_DB: f64 = 20.0;
+
+/// Default of [`Segmentation::retrigger_jump_db`]: 10 dB. A decaying sum of modes cannot rise
+/// that fast whatever its beating (see [`onset::RetriggerWatch`]), and white noise would need a
+/// 12σ sample; hits 4 s apart over a −60 dB floor, merged before, are split.
+pub const DEFAULT_RETRIGGER_JUMP_DB: f64 = 10.0;
+
+/// Lowest frequency whose rise time (a quarter period) sets the new-hit test's gap, Hz.
+pub(crate) const RETRIGGER_MIN_FREQUENCY_HZ: f64 = 5.0;
+
+impl Default for Segmentation {
+    fn default() -> Self {
+        Segmentation {
+            onset_level_db: DEFAULT_ONSET_LEVEL_DB,
+            onset_lookahead_s: DEFAULT_ONSET_LOOKAHEAD_S,
+            max_decay_s: None,
+            end_drop_db: DEFAULT_END_DROP_DB,
+            retrigger_db: DEFAULT_RETRIGGER_DB,
+            retrigger_jump_db: DEFAULT_RETRIGGER_JUMP_DB,
+        }
+    }
+}
+
+impl Segmentation {
+    /// Checks the settings; an error names the field.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(s) = self.max_decay_s {
+            if s.is_nan() || s <= 0.0 {
+                return Err(Error::setting(
+                    "max_decay_s",
+                    format!("expected > 0, got {s}"),
+                ));
+            }
+        }
+        if self.retrigger_jump_db.is_nan() || self.retrigger_jump_db <= 0.0 {
+            return Err(Error::setting(
+                "retrigger_jump_db",
+                format!("expected > 0 dB, got {}", self.retrigger_jump_db),
+            ));
+        }
+        for (name, v) in [
+            ("onset_level_db", self.onset_level_db),
+            ("end_drop_db", self.end_drop_db),
+            ("retrigger_db", self.retrigger_db),
+        ] {
+            if v.is_nan() || v < 0.0 {
+                return Err(Error::setting(name, format!("expected >= 0 dB, got {v}")));
+            }
+        }
+        if !(self.onset_lookahead_s.is_finite() && self.onset_lookahead_s >= 0.0) {
+            return Err(Error::setting(
+                "onset_lookahead_s",
+                format!(
+                    "expected a finite time >= 0, got {}",
+                    self.onset_lookahead_s
+                ),
+            ));
+        }
+        Ok(())
+    }
+}

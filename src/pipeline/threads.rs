@@ -1,0 +1,234 @@
+//! The threads of a run: a reader hands each block to every worker over bounded channels; each
+//! worker owns the [`ChannelAnalyzer`]s of its channels (a panic in one channel stops that
+//! channel only); finished rows come back in stream order ([`super::order::RowOrder`]).
+
+use std::sync::Arc;
+
+use crossbeam_channel::{bounded, Receiver, Sender};
+
+use super::order::RowOrder;
+use super::{AnalysisConfig, ChannelAnalyzer, FrontEndFactory, ResultRow, RunSummary};
+use crate::decay::Flag;
+use crate::error::{Error, Result};
+use crate::source::{Block, Source, SourceError};
+
+/// What a worker hands back after each block: finished rows per channel (index into the
+/// input's channels) and each of its channels' watermark ([`ChannelAnalyzer::watermark`]).
+struct WorkerReport {
+    rows: Vec<(usize, Vec<ResultRow>)>,
+    watermarks: Vec<(usize, u64)>,
+}
+
+/// Blocks alive at once at most: each worker's queue (4), the one it works on, the one read.
+const BLOCKS_IN_FLIGHT: f64 = 6.0;
+
+enum ToWorker {
+    Block(Arc<Block>),
+    End { truncated: bool },
+}
+
+/// Runs the whole analysis of `source`, calling `on_rows` with each batch of finished rows as soon
+/// as it is ready. Errors from `on_rows` stop the run.
+pub fn run(
+    mut source: Box<dyn Source>,
+    factory: &FrontEndFactory,
+    config: &AnalysisConfig,
+    mut on_rows: impl FnMut(&[ResultRow]) -> Result<()>,
+) -> Result<RunSummary> {
+    let info = source.info().clone();
+    let n_channels = info.channels();
+    if n_channels == 0 {
+        return Err(Error::setting("input", "no channels"));
+    }
+    crate::source::check_unique_names("input", &info.channel_names)?;
+    let workers = n_channels.min(
+        std::thread::available_parallelism()
+            .map(|n| n.get())
+            .unwrap_or(1),
+    );
+    let block_frames = config.block_frames.max(1);
+    // Memory, before anything proportional to the channel count is allocated: one front end
+    // tells its size, the analyzers' buffers are known, and blocks are shared by the workers.
+    let first = factory()?;
+    // A decay's frame history: the input's length when known, capped by the longest decay.
+    let decay_s = source
+        .duration_frames()
+        .map_or(f64::INFINITY, |n| n as f64 / info.sample_rate_hz)
+        .min(config.segmentation.max_decay_s.unwrap_or(f64::INFINITY));
+    let history_frames = if decay_s.is_finite() {
+        decay_s / first.resolution().frame_period_s
+    } else {
+        0.0 // a stream of unknown length: the envelopes grow with it (docs/FORMATS.md §2)
+    };
+    let per_channel = first.memory_bytes() as f64
+        + ChannelAnalyzer::buffer_bytes(
+            info.sample_rate_hz,
+            first.bands().len(),
+            history_frames,
+            config,
+        );
+    let blocks = BLOCKS_IN_FLIGHT * block_frames as f64 * n_channels as f64 * 8.0;
+    crate::budget::check(
+        &format!("the analysis of {n_channels} channels"),
+        per_channel * n_channels as f64 + blocks,
+    )?;
+    let mut first = Some(first);
+    let mut groups: Vec<Vec<(usize, ChannelAnalyzer)>> = (0..workers).map(|_| Vec::new()).collect();
+    for (c, name) in info.channel_names.iter().enumerate() {
+        let fe = match first.take() {
+            Some(fe) => fe,
+            None => factory()?,
+        };
+        let an = ChannelAnalyzer::new(name.clone(), info.sample_rate_hz, fe, *config);
+        groups[c % workers].push((c, an));
+    }
+    let (row_tx, row_rx) = bounded::<WorkerReport>(64);
+    std::thread::scope(|scope| -> Result<RunSummary> {
+        let mut worker_txs: Vec<Sender<ToWorker>> = Vec::new();
+        let mut handles = Vec::new();
+        for group in groups {
+            let (tx, rx) = bounded::<ToWorker>(4);
+            worker_txs.push(tx);
+            let row_tx = row_tx.clone();
+            handles.push(scope.spawn(move || worker(group, rx, row_tx)));
+        }
+        drop(row_tx);
+        let reader = scope.spawn(move || -> Option<SourceError> {
+            let mut failure = None;
+            loop {
+                let mut block = Block::default();
+                match source.read_block(block_frames, &mut block) {
+                    Ok(true) => {
+                        let b = Arc::new(block);
+                        if worker_txs
+                            .iter()
+                            .any(|tx| tx.send(ToWorker::Block(b.clone())).is_err())
+                        {
+                            break;
+                        }
+                    }
+                    Ok(false) => break,
+                    Err(e) => {
+                        failure = Some(e);
+                        break;
+                    }
+                }
+            }
+            // An input without a single sample frame is an error, not a run of empty rows:
+            // the workers stop without finishing their channels.
+            if !matches!(failure, Some(SourceError::Empty { .. })) {
+                let truncated = failure.is_some();
+                for tx in &worker_txs {
+                    let _ = tx.send(ToWorker::End { truncated });
+                }
+            }
+            failure
+        });
+        let mut summary = RunSummary::default();
+        let mut result = Ok(());
+        let mut order = RowOrder::new(n_channels);
+        let mut deliver = |rows: Vec<ResultRow>, summary: &mut RunSummary| {
+            if rows.is_empty() {
+                return;
+            }
+            summary.rows += rows.len();
+            for r in &rows {
+                if r.estimate.has(Flag::NonFiniteInput)
+                    && !summary.non_finite_channels.contains(&r.channel)
+                {
+                    summary.non_finite_channels.push(r.channel.clone());
+                }
+                if r.estimate.has(Flag::InternalError)
+                    && !summary.internal_error_channels.contains(&r.channel)
+                {
+                    summary.internal_error_channels.push(r.channel.clone());
+                }
+            }
+            if result.is_ok() {
+                result = on_rows(&rows);
+            }
+        };
+        for report in row_rx.iter() {
+            for (c, rows) in report.rows {
+                order.add(c, rows);
+            }
+            for (c, w) in report.watermarks {
+                order.advance(c, w);
+            }
+            deliver(order.release(), &mut summary);
+        }
+        deliver(order.drain(), &mut summary);
+        summary.input_error = reader.join().unwrap_or(None);
+        if let Some(SourceError::Empty { .. }) = summary.input_error {
+            for h in handles {
+                let _ = h.join();
+            }
+            return Err(summary
+                .input_error
+                .take()
+                .map(Error::from)
+                .unwrap_or_else(|| Error::setting("input", "no samples")));
+        }
+        for h in handles {
+            let _ = h.join();
+        }
+        result.map(|_| summary)
+    })
+}
+
+fn worker(
+    mut group: Vec<(usize, ChannelAnalyzer)>,
+    rx: Receiver<ToWorker>,
+    row_tx: Sender<WorkerReport>,
+) {
+    use std::panic::{catch_unwind, AssertUnwindSafe};
+    // A panic in one channel's analysis (a bug) stops that channel only: its rows say
+    // `internal_error` and the channels sharing this worker go on.
+    let mut crashed = vec![false; group.len()];
+    let mut guarded = |i: usize,
+                       an: &mut ChannelAnalyzer,
+                       f: &dyn Fn(&mut ChannelAnalyzer, &mut Vec<ResultRow>)|
+     -> Vec<ResultRow> {
+        if crashed[i] {
+            return Vec::new();
+        }
+        let mut local = Vec::new();
+        if catch_unwind(AssertUnwindSafe(|| f(an, &mut local))).is_ok() {
+            local
+        } else {
+            crashed[i] = true;
+            an.fail_with(Flag::InternalError)
+        }
+    };
+    for msg in rx.iter() {
+        let mut report = WorkerReport {
+            rows: Vec::new(),
+            watermarks: Vec::with_capacity(group.len()),
+        };
+        for (i, (c, an)) in group.iter_mut().enumerate() {
+            let rows = match &msg {
+                ToWorker::Block(block) => match block.channels.get(*c) {
+                    Some(samples) => guarded(i, an, &|an, o| an.push(samples, o)),
+                    None => Vec::new(),
+                },
+                ToWorker::End { truncated } => {
+                    let t = *truncated;
+                    let rows = guarded(i, an, &|an, o| an.finish(t, o));
+                    // Finished (or crashed): nothing more comes from this channel.
+                    report.watermarks.push((*c, u64::MAX));
+                    if !rows.is_empty() {
+                        report.rows.push((*c, rows));
+                    }
+                    continue;
+                }
+            };
+            if !rows.is_empty() {
+                report.rows.push((*c, rows));
+            }
+            report.watermarks.push((*c, an.watermark()));
+        }
+        if row_tx.send(report).is_err() {
+            return;
+        }
+    }
+}
