@@ -6,9 +6,9 @@
 use std::io::Cursor;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use dampscope::output::write_wav_f32;
 use dampscope::source::{
-    write_wav_f32, Block, CsvSource, Mode, RawFormat, RawSource, Source, SynthSource, SynthSpec,
-    WavSource,
+    Block, CsvSource, Mode, RawFormat, RawSource, Source, SynthSource, SynthSpec, WavSource,
 };
 
 const FRAMES: usize = 200_000;

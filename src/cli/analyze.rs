@@ -10,7 +10,7 @@ use super::{EXIT_OK, EXIT_PARTIAL};
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline;
 use crate::plan::PreparedRun;
-use crate::source::stdin::open_input;
+use crate::source::open::open_input;
 use crate::source::Source;
 
 /// Options of `dampscope analyze`.

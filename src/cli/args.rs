@@ -16,8 +16,8 @@ use crate::pipeline::segment::{
 };
 use crate::plan::bands::DEFAULT_MAX_BAND_HZ;
 use crate::plan::{AnalysisPlan, BandLayout, BandSpec, FrontEndKind, FrontEndSpec};
+use crate::source::open::InputOptions;
 use crate::source::raw::RawFormat;
-use crate::source::stdin::InputOptions;
 
 /// `--front-end`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]

@@ -14,7 +14,7 @@ use crate::modal::Recordings;
 use crate::pipeline::segment::DEFAULT_ONSET_LEVEL_DB;
 use crate::plan::FrontEndKind;
 use crate::source::memory::MAX_WHOLE_SAMPLES;
-use crate::source::stdin::open_input;
+use crate::source::open::open_input;
 
 /// One entry of `--front-ends`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -19,8 +19,8 @@ use crate::analysis::maps::{band_maps, BandMap, GlobalDamping, MapError, SubsetM
 use crate::output::write_csv_file;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, ResultRow};
+use crate::source::open::open_input;
 use crate::source::recording_set::read_sensors;
-use crate::source::stdin::open_input;
 
 /// Options of `dampscope map`.
 #[derive(Debug, clap::Args)]

@@ -11,7 +11,7 @@ use crate::modal::model_shapes::{
     match_model, model_modes_at, sensor_positions, ModelMatch, MODEL_FMAX_FACTOR,
 };
 use crate::modal::{identify_with_progress, ModalResult, ModalSettings, Recordings};
-use crate::source::stdin::open_input;
+use crate::source::open::open_input;
 
 /// Most samples per channel `modal` reads (the identification holds the whole record).
 pub const MAX_MODAL_SAMPLES: usize = 1 << 26;

@@ -7,13 +7,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 
 use crate::modal::Recordings;
+use crate::output::{write_recording_set_streamed, WavStreamWriter};
 use crate::sim::model::Model;
 use crate::sim::simulate::{simulate_stream, Method, SimulateOptions, STREAM_BLOCK_FRAMES};
 use crate::sim::system::SensorWeights;
-use crate::source::recording_set::{
-    write_recording_set_streamed, DecayKind, Excitation, RecordingMeta, Sensor,
-};
-use crate::source::{Block, Source, WavStreamWriter};
+use crate::source::recording_set::{DecayKind, Excitation, RecordingMeta, Sensor};
+use crate::source::{Block, Source};
 
 /// FRF method on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

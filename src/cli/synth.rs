@@ -7,7 +7,8 @@ use std::io::{self, BufWriter, Write};
 
 use anyhow::{bail, Context};
 
-use crate::source::{Block, Mode, Source, SynthSource, SynthSpec, WavStreamWriter};
+use crate::output::WavStreamWriter;
+use crate::source::{Block, Mode, Source, SynthSource, SynthSpec};
 
 /// Output format of `synth`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]

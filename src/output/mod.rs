@@ -4,6 +4,12 @@
 //! joined with `;`. Rows are flushed as they are written, so a reader downstream of a pipe sees
 //! each decay's results as soon as it ends.
 
+pub mod recording_set;
+pub mod wav;
+
+pub use recording_set::{write_recording_set, write_recording_set_streamed};
+pub use wav::{write_wav_f32, WavStreamWriter};
+
 use std::io::Write;
 
 use crate::error::{Error, Result};
@@ -20,103 +26,116 @@ pub enum TableFormat {
     Jsonl,
 }
 
-/// The columns, in order.
-pub const COLUMNS: [&str; 21] = [
-    "channel",
-    "decay",
-    "onset_s",
-    "front_end",
-    "f_lo",
-    "f_hi",
-    "f_center",
-    "f_nominal",
-    "range",
-    "edt_s",
-    "t20_s",
-    "t30_s",
-    "t60_s",
-    "damping_ratio",
-    "damping_ratio_corrected",
-    "f_dominant",
-    "r2",
-    "dynamic_range_db",
-    "n_points",
-    "curvature_pct",
-    "flags",
-];
+/// A number cell: finite values only (a missing or non-finite estimate is an empty CSV cell,
+/// `null` in JSON). In CSV six decimals, in JSON the value as computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Num(pub Option<f64>);
 
-fn num(v: Option<f64>) -> String {
-    match v {
-        Some(x) if x.is_finite() => format!("{x:.6}"),
-        _ => String::new(),
+impl serde::Serialize for Num {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self.0 {
+            Some(x) if x.is_finite() => s.serialize_f64(x),
+            _ => s.serialize_none(),
+        }
     }
 }
 
-fn json_num(v: Option<f64>) -> serde_json::Value {
-    match v {
-        Some(x) if x.is_finite() => serde_json::json!(x),
-        _ => serde_json::Value::Null,
+/// A number cell of the CSV table: six decimals, empty when missing.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fixed6(pub Option<f64>);
+
+impl serde::Serialize for Fixed6 {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self.0 {
+            Some(x) if x.is_finite() => s.serialize_str(&format!("{x:.6}")),
+            _ => s.serialize_none(),
+        }
     }
 }
 
-/// The cells of one row, as text, in [`COLUMNS`] order.
-pub fn row_cells(r: &ResultRow) -> Vec<String> {
-    let e = &r.estimate;
-    let flags: Vec<&str> = e.flags.iter().map(|f| f.as_str()).collect();
-    vec![
-        r.channel.clone(),
-        r.decay.to_string(),
-        num(r.onset_s),
-        r.front_end.to_string(),
-        num(Some(r.band.lo_hz)),
-        num(Some(r.band.hi_hz)),
-        num(Some(r.band.center_hz)),
-        num(Some(r.band.nominal_hz)),
-        r.range.to_string(),
-        num(e.edt_s),
-        num(e.t20_s),
-        num(e.t30_s),
-        num(e.t60_s),
-        num(e.damping_ratio),
-        num(e.damping_ratio_corrected),
-        num(e.f_dominant_hz),
-        num(e.r2),
-        num(e.dynamic_range_db),
-        e.n_points.to_string(),
-        num(e.curvature_pct),
-        flags.join(";"),
-    ]
+/// One row of the result table (FORMATS.md §4): the one place its columns are listed. `N` is
+/// the number cell ([`Fixed6`] for CSV, [`Num`] for JSON), `F` the flags (joined with `;` in
+/// CSV, a list in JSON).
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct TableRow<'a, N, F> {
+    /// Channel (sensor id).
+    pub channel: &'a str,
+    /// Index of the decay in the channel's stream.
+    pub decay: usize,
+    /// Onset of the decay, s from the start.
+    pub onset_s: N,
+    /// Front end.
+    pub front_end: &'a str,
+    /// Band edges, centre and nominal frequency, Hz.
+    pub f_lo: N,
+    /// Upper band edge, Hz.
+    pub f_hi: N,
+    /// Band centre, Hz.
+    pub f_center: N,
+    /// Nominal band frequency, Hz.
+    pub f_nominal: N,
+    /// Evaluation range of `t60_s` and the damping ratios.
+    pub range: String,
+    /// Early decay time, s.
+    pub edt_s: N,
+    /// T20, s.
+    pub t20_s: N,
+    /// T30, s.
+    pub t30_s: N,
+    /// T60 from the evaluation range, s.
+    pub t60_s: N,
+    /// Damping ratio D = 1.1 / (T60 f).
+    pub damping_ratio: N,
+    /// D with the band's dominant frequency in place of its centre.
+    pub damping_ratio_corrected: N,
+    /// Dominant frequency, Hz.
+    pub f_dominant: N,
+    /// r² of the fit.
+    pub r2: N,
+    /// Dynamic range of the decay, dB.
+    pub dynamic_range_db: N,
+    /// Frames in the fit.
+    pub n_points: usize,
+    /// Curvature C = 100 (T30/T20 − 1), %.
+    pub curvature_pct: N,
+    /// Flags.
+    pub flags: F,
 }
 
-fn row_json(r: &ResultRow) -> serde_json::Value {
+/// The table row of a result, with number cells made by `num` and flags by `flags`.
+pub fn table_row<'a, N, F>(
+    r: &'a ResultRow,
+    num: impl Fn(Option<f64>) -> N,
+    flags: impl Fn(Vec<&'static str>) -> F,
+) -> TableRow<'a, N, F> {
     let e = &r.estimate;
-    let flags: Vec<&str> = e.flags.iter().map(|f| f.as_str()).collect();
-    serde_json::json!({
-        "channel": r.channel,
-        "decay": r.decay,
-        "onset_s": json_num(r.onset_s),
-        "front_end": r.front_end,
-        "f_lo": r.band.lo_hz,
-        "f_hi": r.band.hi_hz,
-        "f_center": r.band.center_hz,
-        "f_nominal": r.band.nominal_hz,
-        "range": r.range.to_string(),
-        "edt_s": json_num(e.edt_s),
-        "t20_s": json_num(e.t20_s),
-        "t30_s": json_num(e.t30_s),
-        "t60_s": json_num(e.t60_s),
-        "damping_ratio": json_num(e.damping_ratio),
-        "damping_ratio_corrected": json_num(e.damping_ratio_corrected),
-        "f_dominant": json_num(e.f_dominant_hz),
-        "r2": json_num(e.r2),
-        "dynamic_range_db": json_num(e.dynamic_range_db),
-        "n_points": e.n_points,
-        "curvature_pct": json_num(e.curvature_pct),
-        "flags": flags,
-    })
+    TableRow {
+        channel: &r.channel,
+        decay: r.decay,
+        onset_s: num(r.onset_s),
+        front_end: r.front_end,
+        f_lo: num(Some(r.band.lo_hz)),
+        f_hi: num(Some(r.band.hi_hz)),
+        f_center: num(Some(r.band.center_hz)),
+        f_nominal: num(Some(r.band.nominal_hz)),
+        range: r.range.to_string(),
+        edt_s: num(e.edt_s),
+        t20_s: num(e.t20_s),
+        t30_s: num(e.t30_s),
+        t60_s: num(e.t60_s),
+        damping_ratio: num(e.damping_ratio),
+        damping_ratio_corrected: num(e.damping_ratio_corrected),
+        f_dominant: num(e.f_dominant_hz),
+        r2: num(e.r2),
+        dynamic_range_db: num(e.dynamic_range_db),
+        n_points: e.n_points,
+        curvature_pct: num(e.curvature_pct),
+        flags: flags(e.flags.iter().map(|f| f.as_str()).collect()),
+    }
 }
 
-/// Writes result rows to any writer, flushing after each batch.
+/// Writes result rows to any writer, flushing after each batch (CSV through the `csv` crate,
+/// JSON lines through `serde_json`: quoting and escaping are theirs).
 pub struct TableWriter<W: Write> {
     out: W,
     format: TableFormat,
@@ -137,10 +156,18 @@ impl<W: Write> TableWriter<W> {
         }
     }
 
+    fn csv(&mut self) -> csv::Writer<&mut W> {
+        csv::WriterBuilder::new()
+            .has_headers(false)
+            .from_writer(&mut self.out)
+    }
+
     /// Writes the CSV header (once); called automatically by [`TableWriter::write_rows`].
     pub fn write_header(&mut self) -> Result<()> {
         if !self.header_done && self.format == TableFormat::Csv {
-            writeln!(self.out, "{}", COLUMNS.join(",")).map_err(io_err)?;
+            let mut w = self.csv();
+            w.write_record(columns()).map_err(io_err)?;
+            w.flush().map_err(io_err)?;
         }
         self.header_done = true;
         Ok(())
@@ -149,14 +176,20 @@ impl<W: Write> TableWriter<W> {
     /// Writes a batch of rows and flushes.
     pub fn write_rows(&mut self, rows: &[ResultRow]) -> Result<()> {
         self.write_header()?;
-        for r in rows {
-            match self.format {
-                TableFormat::Csv => {
-                    let cells: Vec<String> = row_cells(r).into_iter().map(csv_escape).collect();
-                    writeln!(self.out, "{}", cells.join(",")).map_err(io_err)?;
+        match self.format {
+            TableFormat::Csv => {
+                let mut w = self.csv();
+                for r in rows {
+                    w.serialize(table_row(r, Fixed6, |f| f.join(";")))
+                        .map_err(io_err)?;
                 }
-                TableFormat::Jsonl => {
-                    writeln!(self.out, "{}", row_json(r)).map_err(io_err)?;
+                w.flush().map_err(io_err)?;
+            }
+            TableFormat::Jsonl => {
+                for r in rows {
+                    serde_json::to_writer(&mut self.out, &table_row(r, Num, |f| f))
+                        .map_err(io_err)?;
+                    self.out.write_all(b"\n").map_err(io_err)?;
                 }
             }
         }
@@ -169,12 +202,33 @@ impl<W: Write> TableWriter<W> {
     }
 }
 
-fn csv_escape(cell: String) -> String {
-    if cell.contains([',', '"', '\n', '\r']) {
-        format!("\"{}\"", cell.replace('"', "\"\""))
-    } else {
-        cell
-    }
+/// The column names, in order: the field names of [`TableRow`].
+pub fn columns() -> Vec<String> {
+    let mut names = csv::WriterBuilder::new().from_writer(Vec::new());
+    let row = ResultRow {
+        channel: String::new(),
+        position_sample: 0,
+        decay: 0,
+        onset_s: None,
+        front_end: "",
+        band: crate::frontend::Band {
+            lo_hz: 0.0,
+            hi_hz: 1.0,
+            center_hz: 0.5,
+            nominal_hz: 0.5,
+        },
+        range: crate::decay::EvaluationRange::T30,
+        estimate: Default::default(),
+    };
+    // The csv crate writes the header from the struct's field names.
+    let _ = names.serialize(table_row(&row, Fixed6, |f| f.join(";")));
+    let text = String::from_utf8(names.into_inner().unwrap_or_default()).unwrap_or_default();
+    text.lines()
+        .next()
+        .unwrap_or_default()
+        .split(',')
+        .map(String::from)
+        .collect()
 }
 
 /// Reads a results CSV written by [`TableWriter`] back into header-keyed records (for tests and

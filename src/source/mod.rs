@@ -135,23 +135,20 @@ pub mod csv;
 mod frames;
 pub mod memory;
 pub mod noise;
+pub mod open;
 pub mod raw;
 pub mod recording_set;
-pub mod stdin;
 pub mod synth;
 pub mod wav;
-pub mod wav_out;
 
 pub use csv::CsvSource;
+pub use open::{open_input, open_stream, InputOptions, OpenedInput};
 pub use raw::{RawFormat, RawSource};
 pub use recording_set::{
-    open_recording_set, write_recording_set, DecayKind, Excitation, RecordingMeta, RecordingSet,
-    Sensor,
+    open_recording_set, DecayKind, Excitation, RecordingMeta, RecordingSet, Sensor,
 };
-pub use stdin::{open_input, open_stream, InputOptions, OpenedInput};
 pub use synth::{synthesize, Mode, SynthSource, SynthSpec};
 pub use wav::{WavHeader, WavSource};
-pub use wav_out::{write_wav_f32, WavStreamWriter};
 
 /// What a source says when a read finds no more frames: the error it held back until every
 /// complete frame was delivered, `Empty` when there never was a frame, or the normal end.

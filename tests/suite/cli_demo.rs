@@ -17,12 +17,7 @@ fn value(out: &str, start: &str, col_from_end: usize) -> f64 {
 
 #[test]
 fn demo_runs_and_reproduces_the_report() {
-    let o = Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .arg("demo")
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let out = String::from_utf8_lossy(&o.stdout);
+    let out = crate::common::TestCommand::new(["demo"]).ok();
     // "three sines …  10ms  150–250  t20  2.500  2.164  2.245  D_eq,ref = 2.16"
     let line = out.lines().find(|l| l.starts_with("three sines")).unwrap();
     let cols: Vec<&str> = line.split_whitespace().collect();

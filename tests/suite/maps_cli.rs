@@ -3,17 +3,13 @@
 //! move is counted as missing, never filled in; inputs without sensor positions are refused.
 
 use std::path::Path;
-use std::process::Command;
 
 use crate::common::{csv_rows, decaying_sines, fresh_dir, rel_err};
-use dampscope::source::{write_recording_set, write_wav_f32, DecayKind, RecordingMeta, Sensor};
+use dampscope::output::{write_recording_set, write_wav_f32};
+use dampscope::source::{DecayKind, RecordingMeta, Sensor};
 
 fn map(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .arg("map")
-        .args(args)
-        .output()
-        .unwrap()
+    crate::common::TestCommand::new(["map"].iter().chain(args)).output()
 }
 
 /// 4 × 3 sensors, 100 Hz decays with D rising along x (1 … 2.5 %), one sensor still.

@@ -19,7 +19,7 @@ fn compare_puts_the_modal_estimate_beside_stft_and_goyder() {
     rec.add_noise_mean_power(50.0, 1);
     let wav = dir.join("noisy.wav");
     let file = std::io::BufWriter::new(std::fs::File::create(&wav).unwrap());
-    dampscope::source::wav_out::write_wav_f32(file, rec.fs_hz as u32, &rec.channels).unwrap();
+    dampscope::output::wav::write_wav_f32(file, rec.fs_hz as u32, &rec.channels).unwrap();
     let out = common::run_dampscope(
         &[
             "compare",

@@ -11,19 +11,6 @@ fn noisy(f: f64, d: f64, psnr_db: f64, seconds: f64, fs: f64) -> Vec<f64> {
 }
 
 #[test]
-fn noise_floor_is_found_and_compensated() {
-    let fs = 4000.0;
-    for (f, d) in [(55.0, 0.025), (100.0, 0.01)] {
-        let x = noisy(f, d, 35.0, 12.0, fs);
-        let est = stft_estimate(&x, fs, 200.0, f - 2.5, f + 2.5, EvaluationRange::T20);
-        eprintln!("{f} Hz: {:?}", est);
-        assert!(est.has(Flag::NoiseCompensated), "{:?}", est.flags);
-        let dc = est.damping_ratio_corrected.expect("estimate");
-        assert!(rel_err(dc, d) < 0.03, "{f} Hz: D = {dc}");
-    }
-}
-
-#[test]
 fn too_little_dynamic_range_is_noise_limited_not_a_number() {
     let fs = 4000.0;
     // 5 dB of broadband PSNR leaves a band peak-to-noise ratio far below the 45 dB T30 needs.
@@ -109,4 +96,36 @@ fn a_decay_cut_off_above_the_range_gives_no_number() {
         .t60_s
         .unwrap_or_else(|| panic!("T20 of a 37 dB decay: {est:?}"));
     assert!(rel_err(t20, t60) < 0.03, "T20 {t20} s, want {t60}");
+}
+
+/// Regression: the noise floor was taken for a decay still falling on 2 of 16 noise
+/// realizations (the last tenth of a 12 s record is 12 fluctuating STFT frames), so the raw
+/// Schroeder curve with its noise tail was fitted and the number withheld as `poor_fit`
+/// (C = 2700–7000 %). Every seed must now be compensated; each estimate within 4 % (the spread
+/// over realizations at this noise level: −2.9 … +3.1 % measured) and their mean within 1 %.
+#[test]
+fn a_noise_floor_is_found_whatever_the_noise_realization() {
+    let fs = 4000.0;
+    for (f, d) in [(55.0, 0.025), (100.0, 0.01)] {
+        let mut sum = 0.0;
+        for seed in 1..=8u64 {
+            let x0 = decaying_sines(&[(f, d, 1.0, 0.0)], fs, 12.0);
+            let peak = x0.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let noise = gaussian_noise(x0.len(), peak * 10f64.powf(-35.0 / 20.0), seed);
+            let x: Vec<f64> = x0.iter().zip(noise).map(|(a, b)| a + b).collect();
+            let est = stft_estimate(&x, fs, 200.0, f - 2.5, f + 2.5, EvaluationRange::T20);
+            assert!(
+                est.has(Flag::NoiseCompensated),
+                "seed {seed}, {f} Hz: {est:?}"
+            );
+            let dc = est.damping_ratio_corrected.expect("estimate");
+            assert!(rel_err(dc, d) < 0.04, "seed {seed}, {f} Hz: D = {dc}");
+            sum += dc;
+        }
+        assert!(
+            rel_err(sum / 8.0, d) < 0.01,
+            "{f} Hz: mean D = {}",
+            sum / 8.0
+        );
+    }
 }

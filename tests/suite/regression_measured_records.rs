@@ -1,15 +1,7 @@
 //! Measured records that found bugs (issue 15): a living-room RIR and pyrato's noisy measured
 //! RIR against pyrato's own numbers, and a structural shock record with `--bands auto`.
 
-use crate::common::{rel_err, run_dampscope};
-
-fn data(rel: &str) -> String {
-    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("tests/data")
-        .join(rel);
-    assert!(p.exists(), "missing test data {}", p.display());
-    p.to_string_lossy().into_owned()
-}
+use crate::common::{data, rel_err, run_dampscope};
 
 fn jsonl(out: &std::process::Output) -> Vec<serde_json::Value> {
     assert!(
@@ -38,7 +30,7 @@ fn pyrato_preset_matches_pyrato_in_every_octave_band() {
     )
     .unwrap();
     let files = [
-        ("living_room_1.wav", data("living_room_1.wav"), None),
+        ("living_room_1.wav", data("rir/living_room_1.wav"), None),
         (
             "room_impulse_response_with_noise.csv",
             data("pyrato/room_impulse_response_with_noise.csv"),

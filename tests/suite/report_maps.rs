@@ -10,31 +10,28 @@
 //!
 //! The pinned edges (2 × 33 sensors) do not move: counted as missing (`no_energy`).
 
+use crate::common::TestCommand;
 use std::path::Path;
-use std::process::Command;
 
 fn global(dir: &Path, modes: &str) -> std::collections::HashMap<String, String> {
-    let exe = env!("CARGO_BIN_EXE_dampscope");
     let model = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/examples/plate-homogeneous.toml"
     );
     let set = dir.join(format!("set-{modes}"));
     let out = dir.join(format!("map-{modes}"));
-    let o = Command::new(exe)
-        .args(["simulate", "--model", model, "--keep-modes", modes, "--out"])
+    TestCommand::new(["simulate", "--model", model, "--keep-modes", modes, "--out"])
         .arg(&set)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = Command::new(exe)
-        .arg("map")
+        .ok();
+    TestCommand::new(["map"])
         .arg(&set)
-        .args(["--band", "52.5:57.5", "--range", "t30", "--out"])
+        .arg("--band")
+        .arg("52.5:57.5")
+        .arg("--range")
+        .arg("t30")
+        .arg("--out")
         .arg(&out)
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        .ok();
     let mut r = csv::Reader::from_path(out.join("global.csv")).unwrap();
     let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
     let rec = r.records().next().unwrap().unwrap();

@@ -3,21 +3,11 @@
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use crate::common::{csv_rows, fresh_dir};
 
 fn dampscope(args: &[&str]) -> String {
-    let o = Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "dampscope {args:?}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    String::from_utf8_lossy(&o.stdout).into_owned()
+    crate::common::TestCommand::new(args).ok()
 }
 
 fn num(r: &HashMap<String, String>, k: &str) -> f64 {

@@ -6,11 +6,19 @@ use dampscope::sim::eigen::{check_modes, lowest_modes, ModeRequest};
 use dampscope::sim::model::Model;
 use dampscope::sim::{assembly::assemble, FeSystem};
 
-/// `/work/shared/reference/plate-modes-calculix-c3d8i.csv` (CalculiX 2.20, C3D8I, 32 × 48 × 2).
-const CALCULIX_HZ: [f64; 12] = [
-    5.2305, 11.6544, 21.2814, 29.8395, 36.0673, 48.2901, 56.7601, 57.5665, 84.2756, 86.2998,
-    87.0324, 95.8032,
-];
+/// CalculiX 2.20's C3D8I eigenfrequencies of the reference plate (32 × 48 × 2), Hz, read from
+/// `tests/data/calculix/plate-modes-calculix-c3d8i.csv` (a missing file fails).
+fn calculix_hz() -> Vec<f64> {
+    let hz = crate::common::csv_rows(std::path::Path::new(&crate::common::data(
+        "calculix/plate-modes-calculix-c3d8i.csv",
+    )))
+    .iter()
+    .map(|r| r["frequency_hz"].parse().unwrap())
+    .collect::<Vec<f64>>();
+    assert_eq!(hz.len(), 12, "CalculiX reference: 12 modes");
+    hz
+}
+
 /// Levy / Kirchhoff exact thin-plate frequencies (METHODS.md §5.3), modes 1–8.
 const LEVY_HZ: [f64; 8] = [
     5.230, 11.672, 21.264, 29.849, 36.102, 48.207, 56.843, 57.511,
@@ -35,7 +43,7 @@ fn reference_plate_matches_calculix_and_the_report() {
     let system = assemble(&model).unwrap();
     assert_eq!(system.n_free, 3 * 4851 - 2 * 3 * 33 + 9 * 3072);
     let modes = lowest_modes(&system, ModeRequest::Count(12)).unwrap();
-    for (i, (&f, &r)) in modes.frequencies_hz.iter().zip(&CALCULIX_HZ).enumerate() {
+    for (i, (&f, &r)) in modes.frequencies_hz.iter().zip(&calculix_hz()).enumerate() {
         eprintln!(
             "mode {}: {f:.4} Hz, CalculiX {r} Hz, {:+.3} %",
             i + 1,
@@ -100,8 +108,8 @@ fn coarse_meshes_converge_toward_levy_and_calculix() {
     let g = lowest_modes(&c, ModeRequest::Count(8))
         .unwrap()
         .frequencies_hz;
-    let ec: f64 = g.iter().zip(CALCULIX_HZ).map(|(a, b)| rel(*a, b)).sum();
-    let em: f64 = f.iter().zip(CALCULIX_HZ).map(|(a, b)| rel(*a, b)).sum();
+    let ec: f64 = g.iter().zip(calculix_hz()).map(|(a, b)| rel(*a, b)).sum();
+    let em: f64 = f.iter().zip(calculix_hz()).map(|(a, b)| rel(*a, b)).sum();
     assert!(em < ec, "CalculiX distance {ec} → {em} should shrink");
 }
 

@@ -2,10 +2,8 @@
 
 use std::io::Cursor;
 
-use dampscope::source::{
-    write_wav_f32, Block, CsvSource, RawFormat, RawSource, Source, SourceError, WavSource,
-    WavStreamWriter,
-};
+use dampscope::output::{write_wav_f32, WavStreamWriter};
+use dampscope::source::{Block, CsvSource, RawFormat, RawSource, Source, SourceError, WavSource};
 
 /// Reads a source to its end with blocks of `block` frames: the samples and the final error.
 fn drain(src: &mut dyn Source, block: usize) -> (Vec<Vec<f64>>, Option<SourceError>) {

@@ -1,11 +1,14 @@
 //! Sources: recording sets (the shared reference example), input opening and detection.
 
 use std::io::Cursor;
+
+use crate::common;
 use std::path::Path;
 
+use dampscope::output::{write_recording_set, write_wav_f32};
 use dampscope::source::{
-    open_input, open_recording_set, open_stream, write_recording_set, write_wav_f32, Block,
-    DecayKind, Excitation, InputOptions, RawFormat, RecordingMeta, Sensor, Source, SourceError,
+    open_input, open_recording_set, open_stream, Block, DecayKind, Excitation, InputOptions,
+    RawFormat, RecordingMeta, Sensor, Source, SourceError,
 };
 use proptest::prelude::*;
 
@@ -188,7 +191,7 @@ fn open_input_by_path() {
         Err(SourceError::Io { .. })
     ));
     let s = open_input(
-        "/work/shared/reference/structural/hrshm_dataset5_pcb_impact_Test_001.csv",
+        &common::data("structural/hrshm_dataset5_pcb_impact_Test_001_head.csv"),
         &InputOptions::default(),
     )
     .unwrap();
@@ -326,7 +329,7 @@ fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
 #[test]
 fn reference_pcm16_wavs_match_hound() {
     for name in ["living_room_1.wav", "ir_sportscentre_omni.wav"] {
-        let path = format!("/work/shared/reference/rir/{name}");
+        let path = common::data(&format!("rir/{name}"));
         let mut h = hound::WavReader::open(&path).unwrap();
         let spec = h.spec();
         let want: Vec<f64> = h

@@ -7,6 +7,16 @@ use dampscope::frontend::bands::Band;
 use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
 use dampscope::pipeline::analyze_decay;
 
+/// The path of a file under `tests/data` (the reference data the oracles read, kept in the
+/// repository); a missing file fails the test, it never skips it.
+pub fn data(rel: &str) -> String {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(rel);
+    assert!(p.exists(), "missing test data {}", p.display());
+    p.to_string_lossy().into_owned()
+}
+
 /// The report's eq. 4.5 (the library's [`dampscope::source::synth::decaying_sines`]), modes as
 /// (f_hz, D, A, ψ_deg).
 pub fn decaying_sines(modes: &[(f64, f64, f64, f64)], fs: f64, seconds: f64) -> Vec<f64> {
@@ -48,22 +58,11 @@ pub fn rel_err(got: f64, want: f64) -> f64 {
     (got / want - 1.0).abs()
 }
 
-/// Deterministic white Gaussian noise (splitmix64 + Box–Muller) of standard deviation `sigma`.
+/// White Gaussian noise of standard deviation `sigma`: the library's own generator
+/// ([`dampscope::source::noise::GaussianNoise`]), seeded.
 pub fn gaussian_noise(n: usize, sigma: f64, seed: u64) -> Vec<f64> {
-    let mut state = seed;
-    let mut next = move || {
-        state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = state;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        ((z ^ (z >> 31)) >> 11) as f64 / (1u64 << 53) as f64
-    };
-    (0..n)
-        .map(|_| {
-            let (u1, u2) = (next().max(1e-300), next());
-            sigma * (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-        })
-        .collect()
+    let mut g = dampscope::source::noise::GaussianNoise::new(seed);
+    (0..n).map(|_| sigma * g.next_gaussian()).collect()
 }
 
 /// The rows of a CSV file with a header, each as column name → text.
@@ -90,26 +89,76 @@ pub fn fresh_dir(name: &str) -> std::path::PathBuf {
     d
 }
 
-/// Runs the real binary with `args`, `stdin` piped in (written from a thread, so a large input
-/// cannot dead-lock against the output), and returns its output.
+/// The real `dampscope` binary as a test runs it (in the manner of ripgrep's `TestCommand`):
+/// arguments, optional standard input (written from a thread, so a large input cannot
+/// dead-lock against the output), and assertions on the outcome that print stderr.
+pub struct TestCommand {
+    cmd: std::process::Command,
+    stdin: Option<Vec<u8>>,
+}
+
+impl TestCommand {
+    /// `dampscope ARGS…`.
+    pub fn new<S: AsRef<std::ffi::OsStr>>(args: impl IntoIterator<Item = S>) -> Self {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_dampscope"));
+        cmd.args(args);
+        TestCommand { cmd, stdin: None }
+    }
+
+    /// One more argument.
+    pub fn arg(mut self, a: impl AsRef<std::ffi::OsStr>) -> Self {
+        self.cmd.arg(a);
+        self
+    }
+
+    /// Pipes `bytes` to standard input.
+    pub fn stdin(mut self, bytes: &[u8]) -> Self {
+        self.stdin = Some(bytes.to_vec());
+        self
+    }
+
+    /// Runs to the end; the whole output, whatever the exit code.
+    pub fn output(mut self) -> std::process::Output {
+        use std::io::Write;
+        use std::process::Stdio;
+        let piped = self.stdin.is_some();
+        let mut child = self
+            .cmd
+            .stdin(if piped { Stdio::piped() } else { Stdio::null() })
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped())
+            .spawn()
+            .expect("the dampscope binary runs");
+        let writer = self.stdin.take().map(|data| {
+            let mut input = child.stdin.take().unwrap();
+            std::thread::spawn(move || {
+                let _ = input.write_all(&data);
+            })
+        });
+        let out = child.wait_with_output().unwrap();
+        if let Some(w) = writer {
+            w.join().unwrap();
+        }
+        out
+    }
+
+    /// Runs, asserts success (showing the command and stderr otherwise) and returns stdout.
+    pub fn ok(self) -> String {
+        let shown = format!("{:?}", self.cmd);
+        let out = self.output();
+        assert!(
+            out.status.success(),
+            "{shown}: exit {:?}: {}",
+            out.status.code(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    }
+}
+
+/// Runs the real binary with `args` and `stdin` piped in; returns its output.
 pub fn run_dampscope(args: &[&str], stdin: &[u8]) -> std::process::Output {
-    use std::io::Write;
-    use std::process::{Command, Stdio};
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("binary runs");
-    let mut input = child.stdin.take().unwrap();
-    let data = stdin.to_vec();
-    let writer = std::thread::spawn(move || {
-        let _ = input.write_all(&data);
-    });
-    let out = child.wait_with_output().unwrap();
-    writer.join().unwrap();
-    out
+    TestCommand::new(args).stdin(stdin).output()
 }
 
 /// A stored recording set read whole, with white noise added at `snr_db` on mean signal power

@@ -7,7 +7,7 @@
 
 use std::io::{self, Write};
 
-use super::Block;
+use crate::source::Block;
 
 /// Bytes per sample of the written format (32-bit float).
 const BYTES_PER_SAMPLE: u64 = 4;
