@@ -6,7 +6,7 @@ use crate::decay::estimate::EstimateSettings;
 use crate::decay::{DecayEstimate, EvaluationRange};
 use crate::error::Result;
 use crate::frontend::bands::Band;
-use crate::frontend::stft::StftSettings;
+use crate::frontend::stft::{StftSettings, DEFAULT_WINDOW_MS};
 use crate::pipeline::analyze_decay;
 use crate::pipeline::segment::onset::find_onset;
 use crate::pipeline::segment::DEFAULT_ONSET_LEVEL_DB;
@@ -59,7 +59,7 @@ pub fn demo_cases() -> Vec<DemoCase> {
             front_end: FrontEndKind::Stft,
             modes: vec![mode(55.0, 0.025, 1.0, 0.0)],
             seconds: 4.0,
-            window_ms: 200.0,
+            window_ms: DEFAULT_WINDOW_MS,
             band: (52.5, 57.5),
             range: EvaluationRange::T30,
             truth_pct: 2.5,
@@ -70,7 +70,7 @@ pub fn demo_cases() -> Vec<DemoCase> {
             front_end: FrontEndKind::Stft,
             modes: vec![mode(56.84, 0.025, 1.0, 0.0)],
             seconds: 4.0,
-            window_ms: 200.0,
+            window_ms: DEFAULT_WINDOW_MS,
             band: (52.5, 57.5),
             range: EvaluationRange::T30,
             truth_pct: 2.5,
@@ -81,7 +81,7 @@ pub fn demo_cases() -> Vec<DemoCase> {
             front_end: FrontEndKind::Stft,
             modes: vec![mode(400.0, 0.01, 1.0, 0.0)],
             seconds: 2.0,
-            window_ms: 200.0,
+            window_ms: DEFAULT_WINDOW_MS,
             band: (380.0, 420.0),
             range: EvaluationRange::T20,
             truth_pct: 1.0,
@@ -125,7 +125,7 @@ pub fn demo_cases() -> Vec<DemoCase> {
             front_end: FrontEndKind::Stft,
             modes: vec![mode(56.84, 0.005, 1.0, 0.0), mode(57.51, 0.005, 1.0, *psi)],
             seconds: 16.0,
-            window_ms: 200.0,
+            window_ms: DEFAULT_WINDOW_MS,
             band: (52.5, 62.5),
             range: EvaluationRange::T20,
             truth_pct: 0.5,

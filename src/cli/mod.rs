@@ -118,6 +118,7 @@ const FIELDS_WITH_FLAGS: &[&str] = &[
     "retrigger_jump_db",
     "front_end",
     "model",
+    "mode_cutoff_factor",
 ];
 
 /// The library's words, and what the command line prints instead (besides

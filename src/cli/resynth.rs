@@ -11,12 +11,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 
-use crate::analysis::resynthesis::{resynthesize, BandDamping};
+use crate::analysis::resynthesis::{resynthesize_model, BandDamping, DEFAULT_MODE_CUTOFF_FACTOR};
 use crate::output::write_csv_file;
-use crate::sim::assembly::assemble;
-use crate::sim::eigen::{lowest_modes, ModeRequest};
 use crate::sim::model::Model;
-use crate::sim::simulate::{simulate_system, SimulateOptions};
 
 /// Options of `dampscope resynth`.
 #[derive(Debug, clap::Args)]
@@ -34,7 +31,7 @@ pub struct ResynthArgs {
     /// Modes below this × fmax carry the re-synthesis (the rest enter as a static residual,
     /// which misses their dynamic amplification 1/(1 − (f/f_i)²): 3 keeps that below 12.5 %
     /// of an already small residual).
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = DEFAULT_MODE_CUTOFF_FACTOR)]
     pub mode_cutoff_factor: f64,
     /// Leave out the residual flexibility of the modes above the kept ones (eq. 4.6 exactly
     /// as the report writes it; ε at the driving point then mostly measures the truncation).
@@ -103,58 +100,9 @@ pub fn run(args: &ResynthArgs) -> anyhow::Result<()> {
     let bands = read_global(&args.global)?;
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("cannot create {}", args.out.display()))?;
-    let mut sys = assemble(&model)?;
-    // The driving point as a virtual sensor: the displacement at the load, weighted like the
-    // load itself (a point force spread over a node's or an element face's dofs).
-    let total: f64 = sys.force.iter().sum();
-    anyhow::ensure!(
-        total != 0.0,
-        "the model's load vector sums to zero: no driving point"
-    );
-    let weights: Vec<(usize, f64)> = sys
-        .force
-        .iter()
-        .enumerate()
-        .filter(|(_, f)| **f != 0.0)
-        .map(|(d, f)| (d, f / total))
-        .collect();
-    sys.sensors.push(crate::sim::system::SensorWeights {
-        id: "driving_point".into(),
-        x_m: model.excitation.x,
-        y_m: model.excitation.y,
-        weights,
-    });
-    let driving_point = sys.sensors.len() - 1;
-    let fmax = model.output.fmax;
-    anyhow::ensure!(
-        args.mode_cutoff_factor.is_finite() && args.mode_cutoff_factor >= 1.0,
-        "invalid setting --mode-cutoff-factor: expected >= 1, got {}",
-        args.mode_cutoff_factor
-    );
-    let cutoff_hz = args.mode_cutoff_factor * fmax;
-    let modes = lowest_modes(&sys, ModeRequest::BelowHz(cutoff_hz))?;
-    let original = simulate_system(
-        &sys,
-        Some(&modes),
-        fmax,
-        model.output.df,
-        &SimulateOptions::default(),
-    )?
-    .frf;
-    let u_static = if args.no_residual {
-        None
-    } else {
-        Some(crate::sim::reduced::static_displacement(&sys)?)
-    };
-    let r = resynthesize(
-        &sys,
-        &modes,
-        &bands,
-        &original,
-        driving_point,
-        u_static.as_deref(),
-    )?;
-
+    let done = resynthesize_model(&model, &bands, args.mode_cutoff_factor, !args.no_residual)?;
+    let (r, original, driving_point) = (&done.result, &done.original, done.driving_point);
+    let cutoff_hz = done.cutoff_hz;
     write_csv_file(&args.out.join("resynth.csv"), &r.bands)?;
     write_csv_file(&args.out.join("modes.csv"), &r.modes)?;
     #[derive(serde::Serialize)]
@@ -174,14 +122,11 @@ pub fn run(args: &ResynthArgs) -> anyhow::Result<()> {
         })
         .collect();
     write_csv_file(&args.out.join("frf_driving_point.csv"), &frf_rows)?;
-    crate::plot::resynthesis_figure(&r, &original, driving_point, &args.out.join("resynth.png"))?;
+    crate::plot::resynthesis_figure(r, original, driving_point, &args.out.join("resynth.png"))?;
 
     println!(
         "re-synthesis over {} modes below {:.0} Hz; driving point at ({}, {}) m",
-        modes.frequencies_hz.len(),
-        cutoff_hz,
-        model.excitation.x,
-        model.excitation.y
+        done.n_modes, cutoff_hz, model.excitation.x, model.excitation.y
     );
     println!(
         "{:>16} {:>10} {:>10} {:>6} {:>12} {:>12}",
