@@ -1,6 +1,7 @@
 //! Studies built on the analysis chain: local damping maps and the global equivalent damping
 //! per band, FRF re-synthesis from it, and the front-end comparison sweep.
 
+pub mod bench;
 pub mod compare;
 pub mod demo;
 pub mod maps;

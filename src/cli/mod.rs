@@ -3,6 +3,7 @@
 
 pub mod analyze;
 pub mod args;
+pub mod bench;
 pub mod compare;
 pub mod demo;
 pub mod diagnose;
@@ -54,6 +55,8 @@ pub enum Command {
     Resynth(resynth::ResynthArgs),
     /// Name the physics the model lacks (mass, stiffness, edge support, loss, damping law, noise), where and how much; update the model, show the fit.
     Diagnose(diagnose::DiagnoseArgs),
+    /// Time the whole analysis per front end on synthetic (or given) multichannel decays.
+    Bench(bench::BenchArgs),
     /// Modal identification from all channels at once: modes.csv, shapes.csv, stabilisation.png.
     Modal(modal::ModalArgs),
     /// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
@@ -88,6 +91,7 @@ pub fn main_exit_code() -> i32 {
         Command::Map(args) => map::run(args),
         Command::Resynth(args) => resynth::run(args).map(|_| EXIT_OK),
         Command::Diagnose(args) => diagnose::run(args).map(|_| EXIT_OK),
+        Command::Bench(args) => bench::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

@@ -25,13 +25,16 @@ pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
     }
     let level = peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0);
     let jump = 10f64.powf(RESTART_JUMP_DB / 10.0);
+    // The window's maximum only where the level test passes (the early decay): the tail,
+    // most of the frames, costs one compare each.
     (2 * g..energies.len()).find(|&k| {
         let e = energies[k];
-        let before = energies[k - 2 * g..=k - g]
-            .iter()
-            .cloned()
-            .fold(0.0, f64::max);
-        e >= level && e > jump * before
+        e >= level
+            && e > jump
+                * energies[k - 2 * g..=k - g]
+                    .iter()
+                    .cloned()
+                    .fold(0.0, f64::max)
     })
 }
 

@@ -9,8 +9,10 @@ pub mod auto_bands;
 pub mod bands;
 pub mod buffered;
 pub mod goyder;
+mod hann_gain;
 pub mod iec_bands;
 pub mod octave_bank;
+mod simd;
 pub mod stft;
 
 pub use bands::Band;

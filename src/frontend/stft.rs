@@ -60,6 +60,9 @@ pub struct StftFrontEnd {
     bin_hz: f64,
     fft: Arc<dyn RealToComplex<f64>>,
     pending: Vec<f64>,
+    /// Where the next frame starts in `pending` (samples before it are spent; they are dropped
+    /// once they outnumber a window, so that each sample is moved O(1) times).
+    next_frame: usize,
     fft_in: Vec<f64>,
     spectrum: Vec<Complex<f64>>,
     power: Vec<f64>,
@@ -150,6 +153,7 @@ impl StftFrontEnd {
             power: vec![0.0; n_bins],
             fft,
             pending: Vec::new(),
+            next_frame: 0,
             energy: vec![0.0; bands.len()],
             frequency_hz: vec![f64::NAN; bands.len()],
             sample_rate_hz,
@@ -273,24 +277,6 @@ fn climb(power: &[f64], mut k: usize) -> usize {
     }
 }
 
-/// Σ_{n<N} e^{c n} = (1 − e^{cN}) / (1 − e^c) (N when c → 0).
-fn geometric_sum(c: Complex<f64>, n: f64) -> Complex<f64> {
-    let den = Complex::new(1.0, 0.0) - c.exp();
-    if den.norm() < 1e-12 {
-        Complex::new(n, 0.0)
-    } else {
-        (Complex::new(1.0, 0.0) - (c * n).exp()) / den
-    }
-}
-
-/// DTFT at θ (rad/sample) of the periodic Hann window of length `n` times e^{−a m}
-/// (a decaying mode seen through one frame): 0.5 S(−a−jθ) − 0.25 S(−a−j(θ∓2π/n)).
-fn decaying_hann_dtft(theta: f64, a: f64, n: f64) -> Complex<f64> {
-    let step = 2.0 * std::f64::consts::PI / n;
-    let s = |t: f64| geometric_sum(Complex::new(-a, -t), n);
-    0.5 * s(theta) - 0.25 * s(theta - step) - 0.25 * s(theta + step)
-}
-
 /// Fractional bin of the spectral peak at integer bin `k`: parabola through the log powers of
 /// bins k−1, k, k+1 (Gaussian interpolation).
 fn peak_frequency(power: &[f64], k: usize) -> f64 {
@@ -331,21 +317,26 @@ impl FrontEnd for StftFrontEnd {
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         self.pending.extend_from_slice(samples);
         let w = self.window.len();
-        let mut start = 0;
-        while start + w <= self.pending.len() {
-            self.compute_frame(start, sink);
-            start += self.hop;
+        while self.next_frame + w <= self.pending.len() {
+            self.compute_frame(self.next_frame, sink);
+            self.next_frame += self.hop;
         }
-        self.pending.drain(..start.min(self.pending.len()));
+        if self.next_frame >= w {
+            let spent = self.next_frame.min(self.pending.len());
+            self.pending.drain(..spent);
+            self.next_frame -= spent;
+        }
     }
 
     fn finish(&mut self, _sink: &mut dyn FrameSink) {
         // Only whole frames are emitted: a partial last window would bias the energy.
         self.pending.clear();
+        self.next_frame = 0;
     }
 
     fn reset(&mut self) {
         self.pending.clear();
+        self.next_frame = 0;
     }
 
     fn name(&self) -> &'static str {
@@ -357,20 +348,17 @@ impl FrontEnd for StftFrontEnd {
         // frame's band energy is the gain: Σ_bins w |G(θ_bin ∓ ω)|² over both images of the
         // real mode.
         let bb = &self.band_bins[band];
-        let n = self.window.len() as f64;
         let a = sigma_per_s / self.sample_rate_hz;
-        let w = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
+        let omega = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
         let bin_rad = 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz;
-        bb.weights
-            .iter()
-            .enumerate()
-            .filter(|(_, wt)| **wt > 0.0)
-            .map(|(i, wt)| {
-                let theta = (bb.first_bin + i) as f64 * bin_rad;
-                wt * (decaying_hann_dtft(theta - w, a, n).norm_sqr()
-                    + decaying_hann_dtft(theta + w, a, n).norm_sqr())
-            })
-            .sum()
+        super::hann_gain::band_mode_gain(
+            bb.first_bin,
+            &bb.weights,
+            bin_rad,
+            self.window.len(),
+            a,
+            omega,
+        )
     }
 
     fn frequency_tolerance_hz(&self) -> f64 {

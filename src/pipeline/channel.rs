@@ -29,6 +29,30 @@ pub struct ChannelAnalyzer {
     failed: bool,
     finished: bool,
     fragments: usize,
+    /// Per-stage clocks, when profiling ([`ChannelAnalyzer::profile_stages`]).
+    clock: Option<StageClock>,
+}
+
+/// Seconds a profiled analyzer spent in segmentation and in its estimators (the front end's
+/// share is the rest of its time).
+#[derive(Clone, Copy, Debug, Default)]
+struct StageClock {
+    segment_s: f64,
+    estimator_s: f64,
+}
+
+/// Runs `f`, adding its duration to `slot` when there is one.
+#[inline]
+fn timed<T>(slot: Option<&mut f64>, f: impl FnOnce() -> T) -> T {
+    match slot {
+        Some(s) => {
+            let t0 = std::time::Instant::now();
+            let out = f();
+            *s += t0.elapsed().as_secs_f64();
+            out
+        }
+        None => f(),
+    }
 }
 
 /// The onset search's lookahead and buffer cap, samples.
@@ -104,7 +128,20 @@ impl ChannelAnalyzer {
             finished: false,
             fragments: 0,
             config,
+            clock: None,
         }
+    }
+
+    /// Starts measuring the time spent in segmentation and in the estimators (a clock read per
+    /// frame: a few per cent slower, so only for profiling).
+    pub fn profile_stages(&mut self) {
+        self.clock = Some(StageClock::default());
+    }
+
+    /// Seconds spent in (segmentation, estimators) since profiling started; zeros without it.
+    pub fn stage_seconds(&self) -> (f64, f64) {
+        self.clock
+            .map_or((0.0, 0.0), |c| (c.segment_s, c.estimator_s))
     }
 
     /// Bytes one analyzer holds besides its front end, at most: the onset buffer at its cap,
@@ -133,8 +170,14 @@ impl ChannelAnalyzer {
 
     fn feed(&mut self, samples: &[f64]) {
         let trackers = &mut self.trackers;
-        self.front_end
-            .process(samples, &mut |f: Frame<'_>| trackers.push(f));
+        match &mut self.clock {
+            None => self
+                .front_end
+                .process(samples, &mut |f: Frame<'_>| trackers.push(f)),
+            Some(clock) => self.front_end.process(samples, &mut |f: Frame<'_>| {
+                timed(Some(&mut clock.estimator_s), || trackers.push(f))
+            }),
+        }
     }
 
     fn rows_for(
@@ -165,7 +208,13 @@ impl ChannelAnalyzer {
             return;
         };
         let trackers = &mut self.trackers;
-        self.front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
+        match &mut self.clock {
+            None => self.front_end.finish(&mut |f: Frame<'_>| trackers.push(f)),
+            Some(clock) => self.front_end.finish(&mut |f: Frame<'_>| {
+                timed(Some(&mut clock.estimator_s), || trackers.push(f))
+            }),
+        }
+        let t_judge = self.clock.is_some().then(std::time::Instant::now);
         if self.decays > 0 && self.trackers.estimators.iter().all(|e| e.frames() == 0) {
             // A re-trigger too short for a single frame at the end of the input (e.g. the
             // wrap-around at the end of an impulse response made by inverse FFT) is not a decay.
@@ -188,6 +237,9 @@ impl ChannelAnalyzer {
             })
             .collect();
         judge_bands(&*self.front_end, &self.trackers.estimators, &mut estimates);
+        if let (Some(t0), Some(clock)) = (t_judge, &mut self.clock) {
+            clock.estimator_s += t0.elapsed().as_secs_f64();
+        }
         for est in &mut estimates {
             if truncated {
                 est.flags.push(Flag::InputTruncated);
@@ -234,7 +286,11 @@ impl ChannelAnalyzer {
             if take == 0 {
                 break;
             }
-            if let Some(hit) = self.watch.scan(&samples[used..used + take]) {
+            let watch = &mut self.watch;
+            let scanned = timed(self.clock.as_mut().map(|c| &mut c.segment_s), || {
+                watch.scan(&samples[used..used + take])
+            });
+            if let Some(hit) = scanned {
                 take = hit;
                 self.retriggered = true;
             }
@@ -271,22 +327,29 @@ impl ChannelAnalyzer {
         let mut rest = samples;
         while !rest.is_empty() {
             match self.state {
-                State::Searching => match self.detector.push(rest) {
-                    OnsetEvent::Pending => return,
-                    OnsetEvent::Found {
-                        onset_index,
-                        samples,
-                        consumed,
-                        peak,
-                        pre_roll,
-                    } => {
-                        rest = &rest[consumed..];
-                        self.start_decay(onset_index, &pre_roll, &samples, peak);
+                State::Searching => {
+                    match timed(self.clock.as_mut().map(|c| &mut c.segment_s), || {
+                        self.detector.push(rest)
+                    }) {
+                        OnsetEvent::Pending => return,
+                        OnsetEvent::Found {
+                            onset_index,
+                            samples,
+                            consumed,
+                            peak,
+                            pre_roll,
+                        } => {
+                            rest = &rest[consumed..];
+                            self.start_decay(onset_index, &pre_roll, &samples, peak);
+                        }
                     }
-                },
+                }
                 State::Decaying { .. } => {
                     let used = self.feed_decay(rest);
-                    self.detector.advance(&rest[..used]);
+                    let detector = &mut self.detector;
+                    timed(self.clock.as_mut().map(|c| &mut c.segment_s), || {
+                        detector.advance(&rest[..used])
+                    });
                     rest = &rest[used..];
                 }
             }

@@ -24,9 +24,9 @@ mod threads;
 
 pub use bands::{analyze_decay, analyze_decay_with};
 pub use channel::ChannelAnalyzer;
-pub use schema::{ResultRow, RunSummary};
+pub use schema::{ResultRow, RunSummary, StageTimes};
 pub use segment::Segmentation;
-pub use threads::run;
+pub use threads::{run, run_with, RunOptions};
 
 use crate::decay::estimate::EstimateSettings;
 use crate::error::Result;

@@ -7,6 +7,7 @@ use std::sync::Arc;
 use crossbeam_channel::{bounded, Receiver, Sender};
 
 use super::order::RowOrder;
+use super::schema::StageTimes;
 use super::{AnalysisConfig, ChannelAnalyzer, FrontEndFactory, ResultRow, RunSummary};
 use crate::decay::Flag;
 use crate::error::{Error, Result};
@@ -17,6 +18,18 @@ use crate::source::{Block, Source, SourceError};
 struct WorkerReport {
     rows: Vec<(usize, Vec<ResultRow>)>,
     watermarks: Vec<(usize, u64)>,
+    /// The worker's time on this block (analysis; with its split once its channels finished).
+    times: StageTimes,
+}
+
+/// How a run uses the machine; the results do not depend on it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RunOptions {
+    /// Worker threads (None: one per available core); never more than the channels.
+    pub threads: Option<usize>,
+    /// Split the analysis time into segmentation, front end and estimator
+    /// ([`StageTimes`]; costs a clock read per frame).
+    pub profile_stages: bool,
 }
 
 /// Blocks alive at once at most: each worker's queue (4), the one it works on, the one read.
@@ -30,9 +43,20 @@ enum ToWorker {
 /// Runs the whole analysis of `source`, calling `on_rows` with each batch of finished rows as soon
 /// as it is ready. Errors from `on_rows` stop the run.
 pub fn run(
+    source: Box<dyn Source>,
+    factory: &FrontEndFactory,
+    config: &AnalysisConfig,
+    on_rows: impl FnMut(&[ResultRow]) -> Result<()>,
+) -> Result<RunSummary> {
+    run_with(source, factory, config, RunOptions::default(), on_rows)
+}
+
+/// [`run`] with a chosen number of worker threads and, if asked, the analysis time split by stage.
+pub fn run_with(
     mut source: Box<dyn Source>,
     factory: &FrontEndFactory,
     config: &AnalysisConfig,
+    options: RunOptions,
     mut on_rows: impl FnMut(&[ResultRow]) -> Result<()>,
 ) -> Result<RunSummary> {
     let info = source.info().clone();
@@ -42,9 +66,14 @@ pub fn run(
     }
     crate::source::check_unique_names("input", &info.channel_names)?;
     let workers = n_channels.min(
-        std::thread::available_parallelism()
-            .map(|n| n.get())
-            .unwrap_or(1),
+        options
+            .threads
+            .unwrap_or_else(|| {
+                std::thread::available_parallelism()
+                    .map(|n| n.get())
+                    .unwrap_or(1)
+            })
+            .max(1),
     );
     let block_frames = config.block_frames.max(1);
     // Memory, before anything proportional to the channel count is allocated: one front end
@@ -79,7 +108,10 @@ pub fn run(
             Some(fe) => fe,
             None => factory()?,
         };
-        let an = ChannelAnalyzer::new(name.clone(), info.sample_rate_hz, fe, *config);
+        let mut an = ChannelAnalyzer::new(name.clone(), info.sample_rate_hz, fe, *config);
+        if options.profile_stages {
+            an.profile_stages();
+        }
         groups[c % workers].push((c, an));
     }
     let (row_tx, row_rx) = bounded::<WorkerReport>(64);
@@ -93,11 +125,24 @@ pub fn run(
             handles.push(scope.spawn(move || worker(group, rx, row_tx)));
         }
         drop(row_tx);
-        let reader = scope.spawn(move || -> Option<SourceError> {
+        let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
             let mut failure = None;
+            let mut read_s = 0.0;
+            // Blocks handed out, oldest first: one the workers are done with is read into
+            // again, so that the hot path allocates nothing once the pipeline is full.
+            let mut recycled: std::collections::VecDeque<Arc<Block>> = Default::default();
             loop {
-                let mut block = Block::default();
-                match source.read_block(block_frames, &mut block) {
+                let mut block = match recycled.front().map(Arc::strong_count) {
+                    Some(1) => recycled
+                        .pop_front()
+                        .and_then(|b| Arc::try_unwrap(b).ok())
+                        .unwrap_or_default(),
+                    _ => Block::default(),
+                };
+                let t0 = std::time::Instant::now();
+                let got = source.read_block(block_frames, &mut block);
+                read_s += t0.elapsed().as_secs_f64();
+                match got {
                     Ok(true) => {
                         let b = Arc::new(block);
                         if worker_txs
@@ -105,6 +150,10 @@ pub fn run(
                             .any(|tx| tx.send(ToWorker::Block(b.clone())).is_err())
                         {
                             break;
+                        }
+                        recycled.push_back(b);
+                        if recycled.len() > BLOCKS_IN_FLIGHT as usize {
+                            recycled.pop_front();
                         }
                     }
                     Ok(false) => break,
@@ -122,9 +171,12 @@ pub fn run(
                     let _ = tx.send(ToWorker::End { truncated });
                 }
             }
-            failure
+            (failure, read_s)
         });
-        let mut summary = RunSummary::default();
+        let mut summary = RunSummary {
+            threads: workers,
+            ..Default::default()
+        };
         let mut result = Ok(());
         let mut order = RowOrder::new(n_channels);
         let mut deliver = |rows: Vec<ResultRow>, summary: &mut RunSummary| {
@@ -145,10 +197,13 @@ pub fn run(
                 }
             }
             if result.is_ok() {
+                let t0 = std::time::Instant::now();
                 result = on_rows(&rows);
+                summary.stages.output_s += t0.elapsed().as_secs_f64();
             }
         };
         for report in row_rx.iter() {
+            summary.stages.add(&report.times);
             for (c, rows) in report.rows {
                 order.add(c, rows);
             }
@@ -158,7 +213,14 @@ pub fn run(
             deliver(order.release(), &mut summary);
         }
         deliver(order.drain(), &mut summary);
-        summary.input_error = reader.join().unwrap_or(None);
+        let (input_error, read_s) = reader.join().unwrap_or((None, 0.0));
+        summary.input_error = input_error;
+        summary.stages.read_s = read_s;
+        // The front end's share is the analysis time not spent in the other two.
+        if options.profile_stages {
+            let st = &mut summary.stages;
+            st.front_end_s = (st.analysis_s - st.segment_s - st.estimator_s).max(0.0);
+        }
         if let Some(SourceError::Empty { .. }) = summary.input_error {
             for h in handles {
                 let _ = h.join();
@@ -204,7 +266,9 @@ fn worker(
         let mut report = WorkerReport {
             rows: Vec::new(),
             watermarks: Vec::with_capacity(group.len()),
+            times: StageTimes::default(),
         };
+        let t0 = std::time::Instant::now();
         for (i, (c, an)) in group.iter_mut().enumerate() {
             let rows = match &msg {
                 ToWorker::Block(block) => match block.channels.get(*c) {
@@ -214,6 +278,9 @@ fn worker(
                 ToWorker::End { truncated } => {
                     let t = *truncated;
                     let rows = guarded(i, an, &|an, o| an.finish(t, o));
+                    let (segment_s, estimator_s) = an.stage_seconds();
+                    report.times.segment_s += segment_s;
+                    report.times.estimator_s += estimator_s;
                     // Finished (or crashed): nothing more comes from this channel.
                     report.watermarks.push((*c, u64::MAX));
                     if !rows.is_empty() {
@@ -227,6 +294,7 @@ fn worker(
             }
             report.watermarks.push((*c, an.watermark()));
         }
+        report.times.analysis_s = t0.elapsed().as_secs_f64();
         if row_tx.send(report).is_err() {
             return;
         }

@@ -8,6 +8,7 @@ mod common;
 mod sim_frf_support;
 
 mod cli_analyze;
+mod cli_bench;
 mod cli_demo;
 mod cli_streaming;
 mod decay_accuracy;

@@ -21,6 +21,7 @@
 //! than 0.01 dB for f < 0.01·fs; the decay slope, which is what the bank measures, does not
 //! depend on it.
 
+use super::super::simd::{madd, mul, nmadd, splat, Isa, Lanes};
 use super::super::Band;
 
 /// Samples between exact resynchronisations of the heterodyne oscillators.
@@ -34,8 +35,6 @@ const WIDE: usize = 8;
 const NARROW: usize = 4;
 /// Most all-pole sections per band (order 8).
 const MAX_SECTIONS: usize = 4;
-
-type Lanes<const L: usize> = [f64; L];
 
 /// Feedback coefficients `[c1, c2]` of the all-pole sections of an even-`order` Butterworth
 /// low-pass with cut-off `fc_hz` (bilinear transform with pre-warping): section k computes
@@ -58,36 +57,6 @@ pub(super) fn band_design(band: &Band, order: usize, fs_hz: f64) -> (f64, Vec<[f
     // Bands beyond Nyquist are flagged by the pipeline; keep the design well-defined.
     let fc = (0.5 * band.width_hz()).min(0.45 * fs_hz);
     (f_h, butterworth_allpole(order, fc, fs_hz))
-}
-
-#[inline(always)]
-fn splat<const L: usize>(x: f64) -> Lanes<L> {
-    [x; L]
-}
-
-#[inline(always)]
-fn mul<const L: usize>(a: Lanes<L>, b: Lanes<L>) -> Lanes<L> {
-    std::array::from_fn(|l| a[l] * b[l])
-}
-
-/// a·b + c, fused when `FMA` (only inside functions compiled with the `fma` feature).
-#[inline(always)]
-fn madd<const FMA: bool, const L: usize>(a: Lanes<L>, b: Lanes<L>, c: Lanes<L>) -> Lanes<L> {
-    if FMA {
-        std::array::from_fn(|l| a[l].mul_add(b[l], c[l]))
-    } else {
-        std::array::from_fn(|l| a[l] * b[l] + c[l])
-    }
-}
-
-/// c − a·b.
-#[inline(always)]
-fn nmadd<const FMA: bool, const L: usize>(a: Lanes<L>, b: Lanes<L>, c: Lanes<L>) -> Lanes<L> {
-    if FMA {
-        std::array::from_fn(|l| (-a[l]).mul_add(b[l], c[l]))
-    } else {
-        std::array::from_fn(|l| c[l] - a[l] * b[l])
-    }
 }
 
 /// Coefficients and states of `L` bands. Padding lanes have zero coefficients and a zero
@@ -219,56 +188,6 @@ impl<const L: usize> Group<L> {
         }
         self.pr = ur;
         self.pi = ui;
-    }
-}
-
-/// Which instruction set the kernel runs with (detected once).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Isa {
-    /// Portable code (fused multiply-add on aarch64 only, where it is always present).
-    Generic,
-    /// x86-64 AVX2 with FMA.
-    #[cfg(target_arch = "x86_64")]
-    Avx2Fma,
-    /// x86-64 AVX-512F with FMA.
-    #[cfg(target_arch = "x86_64")]
-    Avx512,
-}
-
-impl Isa {
-    /// The best instruction set of this CPU, capped by the environment variable
-    /// `DAMPSCOPE_SIMD` (`generic` or `avx2`; for benchmarks and bit-reproducible runs across
-    /// machines).
-    fn detect() -> Isa {
-        let cap = std::env::var("DAMPSCOPE_SIMD").unwrap_or_default();
-        Isa::available()
-            .into_iter()
-            .rev()
-            .find(|isa| match cap.as_str() {
-                "generic" => *isa == Isa::Generic,
-                #[cfg(target_arch = "x86_64")]
-                "avx2" => *isa != Isa::Avx512,
-                _ => true,
-            })
-            .unwrap_or(Isa::Generic)
-    }
-
-    /// The instruction sets this CPU can run, from the most portable.
-    fn available() -> Vec<Isa> {
-        #[allow(unused_mut)]
-        let mut list = vec![Isa::Generic];
-        #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("fma") {
-                if std::arch::is_x86_feature_detected!("avx2") {
-                    list.push(Isa::Avx2Fma);
-                }
-                if std::arch::is_x86_feature_detected!("avx512f") {
-                    list.push(Isa::Avx512);
-                }
-            }
-        }
-        list
     }
 }
 

@@ -15,8 +15,12 @@
 //! rule, per band). Without this, 43–78 % of the band energy at 125 Hz–2 kHz of a measured
 //! living-room RIR was discarded.
 
-use biquad::{Biquad, Coefficients, DirectForm2Transposed};
+mod kernel;
+
+use biquad::Coefficients;
 use rustfft::num_complex::Complex;
+
+use kernel::{FrameSums, Kernel};
 
 use super::buffered::{DecayBuffer, FilterDirection};
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
@@ -119,6 +123,9 @@ pub fn butterworth_bandpass(
     Ok(sections)
 }
 
+/// Frames filtered per kernel call in a reversed decay (bounds the scratch of frame sums).
+const FRAMES_PER_CHUNK: usize = 1024;
+
 /// The octave filter bank front end; one instance per channel.
 pub struct OctaveBankFrontEnd {
     bands: Vec<Band>,
@@ -126,14 +133,14 @@ pub struct OctaveBankFrontEnd {
     sample_rate_hz: f64,
     /// Per band, its sections as `[b0, b1, b2, a1, a2]` (for [`FrontEnd::mode_gain`]).
     sections: Vec<Vec<[f64; 5]>>,
-    filters: Vec<Vec<DirectForm2Transposed<f64>>>,
-    /// Per band, the two previous output samples and the frame's sums Σ y[n−1]·(y[n] + y[n−2])
-    /// and Σ y[n−1]²: the band signal's frequency from the three-point relation
+    /// Every band's cascade; per frame it sums Σy², and Σ y[n−1]·(y[n] + y[n−2]) and
+    /// Σ y[n−1]²: the band signal's frequency from the three-point relation
     /// y[n] + y[n−2] = 2 cos(2πf/fs) y[n−1], exact sample by sample for a sinusoid, so that a
     /// frame shorter than a period is not biased (a lag product would be).
-    last: Vec<[f64; 2]>,
-    acc_freq: Vec<[f64; 2]>,
-    /// The same sums smoothed over about two periods of the band's lower edge, and the
+    kernel: Kernel,
+    /// Frame sums of the current call, frame by frame (scratch).
+    sums: Vec<FrameSums>,
+    /// The frequency sums smoothed over about two periods of the band's lower edge, and the
     /// smoothing factor per frame: within one short frame a decaying sinusoid's cross term
     /// (σ/fs · sin ω · Σ y cos) does not cancel, over a few periods it does.
     smooth: Vec<[f64; 2]>,
@@ -147,7 +154,7 @@ pub struct OctaveBankFrontEnd {
     pre_roll: usize,
     max_samples: usize,
     buffer: DecayBuffer,
-    acc: Vec<f64>,
+    /// Samples of the current (forward) frame so far.
     in_frame: usize,
     energy: Vec<f64>,
     freq: Vec<f64>,
@@ -179,14 +186,6 @@ impl OctaveBankFrontEnd {
             .iter()
             .map(|d| d.iter().map(|c| [c.b0, c.b1, c.b2, c.a1, c.a2]).collect())
             .collect();
-        let filters = designs
-            .into_iter()
-            .map(|d| {
-                d.into_iter()
-                    .map(DirectForm2Transposed::<f64>::new)
-                    .collect()
-            })
-            .collect();
         let hop = (settings.frame_period_ms * 1e-3 * sample_rate_hz)
             .round()
             .max(1.0) as usize;
@@ -216,10 +215,9 @@ impl OctaveBankFrontEnd {
             bands: bands.to_vec(),
             settings,
             sample_rate_hz,
+            kernel: Kernel::new(&sections),
             sections,
-            filters,
-            last: vec![[0.0; 2]; nb],
-            acc_freq: vec![[0.0; 2]; nb],
+            sums: Vec::new(),
             smooth: vec![[0.0; 2]; nb],
             smooth_factor: bands
                 .iter()
@@ -231,7 +229,6 @@ impl OctaveBankFrontEnd {
             pre_roll,
             max_samples,
             buffer: DecayBuffer::new(max_samples + pre_roll),
-            acc: vec![0.0; nb],
             in_frame: 0,
             energy: vec![0.0; nb],
             freq: vec![f64::NAN; nb],
@@ -245,57 +242,31 @@ impl OctaveBankFrontEnd {
     }
 
     fn clear_filters(&mut self) {
-        for f in self.filters.iter_mut().flatten() {
-            f.reset_state();
-        }
-        self.acc.iter_mut().for_each(|a| *a = 0.0);
-        self.acc_freq.iter_mut().for_each(|a| *a = [0.0; 2]);
-        self.last.iter_mut().for_each(|a| *a = [0.0; 2]);
+        self.kernel.clear();
         self.smooth.iter_mut().for_each(|a| *a = [0.0; 2]);
         self.in_frame = 0;
     }
 
-    /// Filters one sample through every band and adds its square (and the three-point
-    /// frequency sums) to the frame sums.
-    fn step(&mut self, x: f64) {
-        for (((acc, fr), last), cascade) in self
-            .acc
-            .iter_mut()
-            .zip(&mut self.acc_freq)
-            .zip(&mut self.last)
-            .zip(&mut self.filters)
-        {
-            let y = cascade.iter_mut().fold(x, |u, f| f.run(u));
-            *acc += y * y;
-            let [y1, y2] = *last;
-            fr[0] += y1 * (y + y2);
-            fr[1] += y1 * y1;
-            *last = [y, y1];
-        }
-    }
-
-    fn take_frame(&mut self) {
+    /// Turns one frame's sums (every band) into its energies and frequencies.
+    fn take_frame(&mut self, sums: &[FrameSums]) {
         let hop = self.hop as f64;
         let to_hz = self.sample_rate_hz / (2.0 * std::f64::consts::PI);
-        for (((((e, a), fr), f), sm), alpha) in self
+        for ((((e, f), sm), alpha), [energy, cross, power]) in self
             .energy
             .iter_mut()
-            .zip(&mut self.acc)
-            .zip(&mut self.acc_freq)
             .zip(&mut self.freq)
             .zip(&mut self.smooth)
             .zip(&self.smooth_factor)
+            .zip(sums)
         {
-            sm[0] = alpha * sm[0] + fr[0];
-            sm[1] = alpha * sm[1] + fr[1];
+            sm[0] = alpha * sm[0] + cross;
+            sm[1] = alpha * sm[1] + power;
             *f = if sm[1] > 0.0 {
                 (0.5 * sm[0] / sm[1]).clamp(-1.0, 1.0).acos() * to_hz
             } else {
                 f64::NAN
             };
-            *e = *a / hop;
-            *a = 0.0;
-            *fr = [0.0; 2];
+            *e = energy / hop;
         }
     }
 
@@ -329,15 +300,17 @@ impl FrontEnd for OctaveBankFrontEnd {
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         match self.settings.direction {
             FilterDirection::Forward => {
-                for &x in samples {
-                    self.step(x);
-                    self.in_frame += 1;
-                    if self.in_frame == self.hop {
-                        self.take_frame();
-                        self.in_frame = 0;
-                        self.emit(sink);
-                    }
+                let mut sums = std::mem::take(&mut self.sums);
+                sums.clear();
+                let first = self.hop - self.in_frame;
+                self.kernel
+                    .filter(samples, false, Some((first, self.hop)), &mut sums);
+                for frame in sums.chunks_exact(self.bands.len().max(1)) {
+                    self.take_frame(frame);
+                    self.emit(sink);
                 }
+                self.in_frame = (self.in_frame + samples.len()) % self.hop;
+                self.sums = sums;
             }
             FilterDirection::Reversed => {
                 self.buffer.push(samples);
@@ -364,23 +337,27 @@ impl FrontEnd for OctaveBankFrontEnd {
         let mut frames = vec![0.0; n_frames * nb];
         let mut freqs = vec![0.0; n_frames * nb];
         self.clear_filters();
-        for n in (0..buffer.len()).rev() {
-            if n >= used {
-                // Run the filters through the transient zone without keeping the output.
-                for (cascade, last) in self.filters.iter_mut().zip(&mut self.last) {
-                    let y = cascade.iter_mut().fold(buffer[n], |u, f| f.run(u));
-                    *last = [y, last[0]];
-                }
-                continue;
-            }
-            self.step(buffer[n]);
-            if n % self.hop == 0 {
-                self.take_frame();
-                let k = n / self.hop;
+        let mut sums = std::mem::take(&mut self.sums);
+        sums.clear();
+        // Through the transient zone without keeping the output, then frame by frame from the
+        // last to the first, a bounded chunk of frames at a time.
+        self.kernel.filter(&buffer[used..], true, None, &mut sums);
+        let mut k_end = n_frames;
+        while k_end > 0 {
+            let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
+            sums.clear();
+            let chunk = &buffer[k_start * self.hop..k_end * self.hop];
+            self.kernel
+                .filter(chunk, true, Some((self.hop, self.hop)), &mut sums);
+            for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
+                let k = k_end - 1 - j;
+                self.take_frame(frame);
                 frames[k * nb..(k + 1) * nb].copy_from_slice(&self.energy);
                 freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
             }
+            k_end = k_start;
         }
+        self.sums = sums;
         super::emit_band_frames(sink, &frames, &freqs, &band_frames);
         self.clear_filters();
         self.buffer.give_back(buffer);

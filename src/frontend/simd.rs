@@ -1,0 +1,105 @@
+//! What the filter-bank kernels share: bands laid out in lanes of `[f64; L]` that one CPU
+//! vector instruction advances together, the arithmetic on such lanes, and the instruction set
+//! chosen once at run time (x86-64: AVX2+FMA or AVX-512 when the CPU has them).
+//!
+//! The helpers are `#[inline(always)]` so that inside a function compiled with
+//! `#[target_feature(enable = "avx2,fma")]` each one becomes one vector instruction.
+
+/// `L` bands side by side, one per lane.
+pub(crate) type Lanes<const L: usize> = [f64; L];
+
+/// Every lane `x`.
+#[inline(always)]
+pub(crate) fn splat<const L: usize>(x: f64) -> Lanes<L> {
+    [x; L]
+}
+
+/// a·b lane by lane.
+#[inline(always)]
+pub(crate) fn mul<const L: usize>(a: Lanes<L>, b: Lanes<L>) -> Lanes<L> {
+    std::array::from_fn(|l| a[l] * b[l])
+}
+
+/// a·b + c, fused when `FMA` (only inside functions compiled with the `fma` feature).
+#[inline(always)]
+pub(crate) fn madd<const FMA: bool, const L: usize>(
+    a: Lanes<L>,
+    b: Lanes<L>,
+    c: Lanes<L>,
+) -> Lanes<L> {
+    if FMA {
+        std::array::from_fn(|l| a[l].mul_add(b[l], c[l]))
+    } else {
+        std::array::from_fn(|l| a[l] * b[l] + c[l])
+    }
+}
+
+/// c − a·b, fused when `FMA`.
+#[inline(always)]
+pub(crate) fn nmadd<const FMA: bool, const L: usize>(
+    a: Lanes<L>,
+    b: Lanes<L>,
+    c: Lanes<L>,
+) -> Lanes<L> {
+    if FMA {
+        std::array::from_fn(|l| (-a[l]).mul_add(b[l], c[l]))
+    } else {
+        std::array::from_fn(|l| c[l] - a[l] * b[l])
+    }
+}
+
+/// a + b lane by lane.
+#[inline(always)]
+pub(crate) fn add<const L: usize>(a: Lanes<L>, b: Lanes<L>) -> Lanes<L> {
+    std::array::from_fn(|l| a[l] + b[l])
+}
+
+/// Which instruction set the kernel runs with (detected once).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Isa {
+    /// Portable code (fused multiply-add on aarch64 only, where it is always present).
+    Generic,
+    /// x86-64 AVX2 with FMA.
+    #[cfg(target_arch = "x86_64")]
+    Avx2Fma,
+    /// x86-64 AVX-512F with FMA.
+    #[cfg(target_arch = "x86_64")]
+    Avx512,
+}
+
+impl Isa {
+    /// The best instruction set of this CPU, capped by the environment variable
+    /// `DAMPSCOPE_SIMD` (`generic` or `avx2`; for benchmarks and bit-reproducible runs across
+    /// machines).
+    pub(crate) fn detect() -> Isa {
+        let cap = std::env::var("DAMPSCOPE_SIMD").unwrap_or_default();
+        Isa::available()
+            .into_iter()
+            .rev()
+            .find(|isa| match cap.as_str() {
+                "generic" => *isa == Isa::Generic,
+                #[cfg(target_arch = "x86_64")]
+                "avx2" => *isa != Isa::Avx512,
+                _ => true,
+            })
+            .unwrap_or(Isa::Generic)
+    }
+
+    /// The instruction sets this CPU can run, from the most portable.
+    pub(crate) fn available() -> Vec<Isa> {
+        #[allow(unused_mut)]
+        let mut list = vec![Isa::Generic];
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("fma") {
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    list.push(Isa::Avx2Fma);
+                }
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    list.push(Isa::Avx512);
+                }
+            }
+        }
+        list
+    }
+}
