@@ -3,6 +3,9 @@
 //! `analyzer/*`: one channel on one core (ChannelAnalyzer: onset, STFT, one estimator per band).
 //! `pipeline/*`: the threaded pipeline (reader → workers → rows) on 1 and 64 channels; criterion's
 //! elements/s there is samples per channel × channels, so divide by the channel count.
+//! `bench_command/*`: exactly what `dampscope bench` times (the peers' synthetic decays, 64
+//! channels × 10 s as raw f32, IEC octave bands, default settings, rows formatted as CSV), per
+//! front end: its elements/s is the command's `samples_per_s`, measured by criterion.
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use dampscope::frontend::bands::default_bands;
@@ -128,5 +131,48 @@ fn pipeline_bench(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, analyzer, pipeline_bench);
+fn bench_command(c: &mut Criterion) {
+    use dampscope::analysis::bench::{BenchInput, DEFAULT_BENCH_CHANNELS, DEFAULT_BENCH_SECONDS};
+    use dampscope::output::{TableFormat, TableWriter};
+    use dampscope::plan::{BandLayout, FrontEndKind};
+    let mut g = c.benchmark_group("bench_command");
+    g.sample_size(10);
+    for fs in [4096.0, 48000.0] {
+        let input =
+            BenchInput::synthetic(DEFAULT_BENCH_CHANNELS, fs, DEFAULT_BENCH_SECONDS).unwrap();
+        let bands = BandLayout {
+            specs: vec!["octave".parse().unwrap()],
+            ..Default::default()
+        }
+        .resolve(fs, None)
+        .unwrap()
+        .bands;
+        g.throughput(Throughput::Elements(
+            (input.frames() * DEFAULT_BENCH_CHANNELS) as u64,
+        ));
+        for kind in FrontEndKind::ALL {
+            let factory = dampscope::plan::FrontEndSpec::default()
+                .with_kind(kind)
+                .factory(fs, bands.clone())
+                .unwrap();
+            g.bench_function(format!("{}_{}hz", kind.name(), fs as u64), |b| {
+                b.iter(|| {
+                    let mut table = TableWriter::new(std::io::sink(), TableFormat::Csv);
+                    table.write_header().unwrap();
+                    pipeline::run(
+                        input.source().unwrap(),
+                        &factory,
+                        &AnalysisConfig::default(),
+                        |rows| table.write_rows(rows),
+                    )
+                    .unwrap()
+                    .rows
+                })
+            });
+        }
+    }
+    g.finish();
+}
+
+criterion_group!(benches, analyzer, pipeline_bench, bench_command);
 criterion_main!(benches);

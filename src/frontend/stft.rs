@@ -13,6 +13,7 @@ use std::sync::Arc;
 use realfft::{RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex;
 
+use super::simd::Isa;
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
 use crate::error::{Error, Result};
 
@@ -49,13 +50,18 @@ impl Default for StftSettings {
 struct BandBins {
     first_bin: usize,
     weights: Vec<f64>,
+    /// Positions (in `weights`) of the bins with a positive weight: contiguous, since only the
+    /// edge bins can lie wholly outside the band.
+    weighted: std::ops::Range<usize>,
 }
 
 /// Streaming STFT: samples in, per band one energy (and peak frequency) per hop out.
 pub struct StftFrontEnd {
     bands: Vec<Band>,
     band_bins: Vec<BandBins>,
-    window: Vec<f64>,
+    /// The periodic Hann window, shared by every front end of the same length (one copy in the
+    /// cache for all channels).
+    window: Arc<[f64]>,
     hop: usize,
     bin_hz: f64,
     fft: Arc<dyn RealToComplex<f64>>,
@@ -71,6 +77,8 @@ pub struct StftFrontEnd {
     frequency_hz: Vec<f64>,
     sample_rate_hz: f64,
     zero_pad: usize,
+    /// Instruction set of the per-frame loops (window, power spectrum).
+    isa: Isa,
 }
 
 /// Bytes one STFT front end holds: window, FFT buffers and plan, power spectrum, band weights
@@ -127,13 +135,7 @@ impl StftFrontEnd {
             .round()
             .max(1.0) as usize;
         let nfft = win_len * settings.zero_pad;
-        // Periodic Hann window.
-        let window: Vec<f64> = (0..win_len)
-            .map(|i| {
-                let s = (std::f64::consts::PI * i as f64 / win_len as f64).sin();
-                s * s
-            })
-            .collect();
+        let window = shared_hann(win_len);
         let fft = shared_plan(nfft);
         let n_bins = nfft / 2 + 1;
         let bin_hz = sample_rate_hz / nfft as f64;
@@ -158,6 +160,7 @@ impl StftFrontEnd {
             frequency_hz: vec![f64::NAN; bands.len()],
             sample_rate_hz,
             zero_pad: settings.zero_pad,
+            isa: Isa::detect(),
         })
     }
 
@@ -173,36 +176,33 @@ impl StftFrontEnd {
 
     fn compute_frame(&mut self, start: usize, sink: &mut dyn FrameSink) {
         let w = self.window.len();
-        for ((dst, &x), &win) in self.fft_in[..w]
-            .iter_mut()
-            .zip(&self.pending[start..start + w])
-            .zip(&self.window)
-        {
-            *dst = x * win;
-        }
-        self.fft_in[w..].iter_mut().for_each(|v| *v = 0.0);
+        window_and_zero_pad(
+            self.isa,
+            &mut self.fft_in,
+            &self.pending[start..start + w],
+            &self.window,
+        );
         // Lengths are fixed at construction, so the FFT cannot fail.
         let _ =
             self.fft
                 .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
-        for (p, c) in self.power.iter_mut().zip(&self.spectrum) {
-            *p = c.norm_sqr();
-        }
+        power_spectrum(self.isa, &mut self.power, &self.spectrum);
         for (k, bb) in self.band_bins.iter().enumerate() {
             let powers = &self.power[bb.first_bin..bb.first_bin + bb.weights.len()];
-            let mut e = 0.0;
+            let e: f64 = powers.iter().zip(&bb.weights).map(|(p, wt)| wt * p).sum();
+            // The bins with a positive weight are contiguous (only edge bins can have none):
+            // the strongest of them, the first on a tie.
+            let (first, last) = (
+                bb.first_bin + bb.weighted.start,
+                bb.first_bin + bb.weighted.end,
+            );
             let mut best = (0.0, usize::MAX);
-            let (mut first, mut last) = (usize::MAX, 0);
-            for (i, (&p, &wt)) in powers.iter().zip(&bb.weights).enumerate() {
-                e += wt * p;
-                if wt > 0.0 {
-                    first = first.min(bb.first_bin + i);
-                    last = bb.first_bin + i;
-                    if p > best.0 {
-                        best = (p, bb.first_bin + i);
-                    }
+            for (i, &p) in self.power[first..last].iter().enumerate() {
+                if p > best.0 {
+                    best = (p, first + i);
                 }
             }
+            let last = last.saturating_sub(1);
             self.energy[k] = e;
             // A maximum on the band's edge with more power outside is the skirt of a peak
             // outside the band: follow it uphill, so that the frame reports the frequency that
@@ -227,6 +227,69 @@ impl StftFrontEnd {
     }
 }
 
+/// `dst[..x.len()] = x · window`, the rest of `dst` zero (the zero padding).
+fn window_and_zero_pad(isa: Isa, dst: &mut [f64], x: &[f64], window: &[f64]) {
+    #[inline(always)]
+    fn run(dst: &mut [f64], x: &[f64], window: &[f64]) {
+        let (head, tail) = dst.split_at_mut(x.len());
+        for ((d, &x), &w) in head.iter_mut().zip(x).zip(window) {
+            *d = x * w;
+        }
+        tail.iter_mut().for_each(|v| *v = 0.0);
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn run_avx2(dst: &mut [f64], x: &[f64], window: &[f64]) {
+        run(dst, x, window)
+    }
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Isa::detect` found AVX2 on this CPU (separate multiplies: same results).
+        Isa::Avx2Fma | Isa::Avx512 => unsafe { run_avx2(dst, x, window) },
+        Isa::Generic => run(dst, x, window),
+    }
+}
+
+/// `power[k] = |spectrum[k]|²`.
+fn power_spectrum(isa: Isa, power: &mut [f64], spectrum: &[Complex<f64>]) {
+    #[inline(always)]
+    fn run(power: &mut [f64], spectrum: &[Complex<f64>]) {
+        for (p, c) in power.iter_mut().zip(spectrum) {
+            *p = c.re * c.re + c.im * c.im;
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn run_avx2(power: &mut [f64], spectrum: &[Complex<f64>]) {
+        run(power, spectrum)
+    }
+    match isa {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Isa::detect` found AVX2 on this CPU (no fused operations: same results).
+        Isa::Avx2Fma | Isa::Avx512 => unsafe { run_avx2(power, spectrum) },
+        Isa::Generic => run(power, spectrum),
+    }
+}
+
+/// The periodic Hann window of `len` samples, made once per length in the process.
+fn shared_hann(len: usize) -> Arc<[f64]> {
+    static WINDOWS: std::sync::OnceLock<
+        std::sync::Mutex<std::collections::HashMap<usize, Arc<[f64]>>>,
+    > = std::sync::OnceLock::new();
+    let make = || -> Arc<[f64]> {
+        (0..len)
+            .map(|i| {
+                let s = (std::f64::consts::PI * i as f64 / len as f64).sin();
+                s * s
+            })
+            .collect()
+    };
+    match WINDOWS.get_or_init(Default::default).lock() {
+        Ok(mut cache) => cache.entry(len).or_insert_with(make).clone(),
+        Err(_) => make(),
+    }
+}
+
 /// FFT plans are shared by every front end of the process (one per length): planning costs more
 /// than a short decay's transforms, and a 64-channel run would otherwise plan 64 times.
 fn shared_plan(nfft: usize) -> Arc<dyn RealToComplex<f64>> {
@@ -248,6 +311,7 @@ fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
         return BandBins {
             first_bin: 0,
             weights: Vec::new(),
+            weighted: 0..0,
         };
     }
     let hi_bin = (((band.hi_hz / bin_hz) + 0.5).ceil() as usize).min(n_bins.saturating_sub(1));
@@ -258,9 +322,16 @@ fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
         let overlap = (z.min(band.hi_hz) - a.max(band.lo_hz)).max(0.0);
         weights.push(if b < n_bins { overlap / bin_hz } else { 0.0 });
     }
+    let start = weights.iter().position(|w| *w > 0.0).unwrap_or(0);
+    let end = weights
+        .iter()
+        .rposition(|w| *w > 0.0)
+        .map_or(start, |i| i + 1);
+    debug_assert!(weights[start..end].iter().all(|w| *w > 0.0));
     BandBins {
         first_bin: lo_bin,
         weights,
+        weighted: start..end,
     }
 }
 

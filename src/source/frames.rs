@@ -66,8 +66,8 @@ impl Codec {
 /// the first-level cache while each channel's samples are picked out of it.
 const TILE_FRAMES: usize = 64;
 
-/// Decodes whole interleaved frames into one vector per channel (each resized to the frame
-/// count). The codec is resolved once, outside the loops, and the frames are taken in tiles,
+/// Decodes whole interleaved frames into one vector per channel (each replaced by the frame
+/// count of samples). The codec is resolved once, outside the loops, and the frames are taken in tiles,
 /// so that each channel's writes are sequential and its reads stay in the cache.
 fn deinterleave(codec: Codec, bytes: &[u8], scale: f64, channels: &mut [Vec<f64>]) {
     #[inline(always)]
@@ -81,17 +81,19 @@ fn deinterleave(codec: Codec, bytes: &[u8], scale: f64, channels: &mut [Vec<f64>
         let fb = n_ch * B;
         let frames = bytes.len() / fb.max(1);
         for ch in channels.iter_mut() {
-            ch.resize(frames, 0.0);
+            ch.clear();
+            ch.reserve(frames);
         }
         for t0 in (0..frames).step_by(TILE_FRAMES) {
             let t1 = (t0 + TILE_FRAMES).min(frames);
             let tile = &bytes[t0 * fb..t1 * fb];
             for (c, ch) in channels.iter_mut().enumerate() {
-                for (dst, frame) in ch[t0..t1].iter_mut().zip(tile.chunks_exact(fb)) {
+                // An exact-size iterator: no zero fill, no capacity check per sample.
+                ch.extend(tile.chunks_exact(fb).map(|frame| {
                     let mut raw = [0u8; B];
                     raw.copy_from_slice(&frame[c * B..c * B + B]);
-                    *dst = decode(raw) * scale;
-                }
+                    decode(raw) * scale
+                }));
             }
         }
     }
