@@ -1,5 +1,5 @@
 //! Studies built on the analysis chain: local damping maps and the global equivalent damping
-//! per band, FRF re-synthesis from it, and the front-end comparison sweep.
+//! per band, FRF re-synthesis from it, the front-end comparison sweep, and the throughput bench.
 
 pub mod bench;
 pub mod compare;
