@@ -69,10 +69,6 @@ pub struct StftFrontEnd {
     /// Where the next frame starts in `pending` (samples before it are spent; they are dropped
     /// once they outnumber a window, so that each sample is moved O(1) times).
     next_frame: usize,
-    fft_in: Vec<f64>,
-    spectrum: Vec<Complex<f64>>,
-    power: Vec<f64>,
-    scratch: Vec<Complex<f64>>,
     energy: Vec<f64>,
     frequency_hz: Vec<f64>,
     sample_rate_hz: f64,
@@ -149,10 +145,6 @@ impl StftFrontEnd {
             window,
             hop,
             bin_hz,
-            fft_in: fft.make_input_vec(),
-            spectrum: fft.make_output_vec(),
-            scratch: fft.make_scratch_vec(),
-            power: vec![0.0; n_bins],
             fft,
             pending: Vec::new(),
             next_frame: 0,
@@ -175,20 +167,39 @@ impl StftFrontEnd {
     }
 
     fn compute_frame(&mut self, start: usize, sink: &mut dyn FrameSink) {
+        FRAME_BUFFERS.with(|cell| match cell.try_borrow_mut() {
+            Ok(mut buffers) => self.fill_frame(start, &mut buffers),
+            // Only if a frame were computed inside another's (it is not): fresh buffers.
+            Err(_) => self.fill_frame(start, &mut FrameBuffers::default()),
+        });
+        sink.frame(Frame {
+            energy: &self.energy,
+            frequency_hz: &self.frequency_hz,
+            active: None,
+        });
+    }
+
+    /// The band energies and frequencies of the frame starting at `pending[start]`.
+    fn fill_frame(&mut self, start: usize, buffers: &mut FrameBuffers) {
         let w = self.window.len();
+        buffers.fit(&*self.fft);
+        let FrameBuffers {
+            fft_in,
+            spectrum,
+            scratch,
+            power,
+        } = buffers;
         window_and_zero_pad(
             self.isa,
-            &mut self.fft_in,
+            fft_in,
             &self.pending[start..start + w],
             &self.window,
         );
         // Lengths are fixed at construction, so the FFT cannot fail.
-        let _ =
-            self.fft
-                .process_with_scratch(&mut self.fft_in, &mut self.spectrum, &mut self.scratch);
-        power_spectrum(self.isa, &mut self.power, &self.spectrum);
+        let _ = self.fft.process_with_scratch(fft_in, spectrum, scratch);
+        power_spectrum(self.isa, power, spectrum);
         for (k, bb) in self.band_bins.iter().enumerate() {
-            let powers = &self.power[bb.first_bin..bb.first_bin + bb.weights.len()];
+            let powers = &power[bb.first_bin..bb.first_bin + bb.weights.len()];
             let e: f64 = powers.iter().zip(&bb.weights).map(|(p, wt)| wt * p).sum();
             // The bins with a positive weight are contiguous (only edge bins can have none):
             // the strongest of them, the first on a tie.
@@ -197,7 +208,7 @@ impl StftFrontEnd {
                 bb.first_bin + bb.weighted.end,
             );
             let mut best = (0.0, usize::MAX);
-            for (i, &p) in self.power[first..last].iter().enumerate() {
+            for (i, &p) in power[first..last].iter().enumerate() {
                 if p > best.0 {
                     best = (p, first + i);
                 }
@@ -209,22 +220,44 @@ impl StftFrontEnd {
             // carries the band's energy (and the leakage test sees it off-band).
             let mut peak = best.1;
             if peak != usize::MAX && (peak == first || peak == last) {
-                peak = climb(&self.power, peak);
+                peak = climb(power, peak);
             }
             // Below bin 2 the mirror image at −f overlaps the Hann main lobe (±2 bins): the
             // window holds less than two periods and the peak position is not the frequency.
             self.frequency_hz[k] = if peak == usize::MAX || peak < 2 * self.zero_pad {
                 f64::NAN
             } else {
-                peak_frequency(&self.power, peak) * self.bin_hz
+                peak_frequency(power, peak) * self.bin_hz
             };
         }
-        sink.frame(Frame {
-            energy: &self.energy,
-            frequency_hz: &self.frequency_hz,
-            active: None,
-        });
     }
+}
+
+/// The buffers of one frame's transform (windowed frame, spectrum, FFT scratch, power). No frame
+/// keeps them, so one set per thread serves every channel that thread analyses and stays in the
+/// cache; one set per channel made the 48 kHz path memory-bound.
+#[derive(Default)]
+struct FrameBuffers {
+    fft_in: Vec<f64>,
+    spectrum: Vec<Complex<f64>>,
+    scratch: Vec<Complex<f64>>,
+    power: Vec<f64>,
+}
+
+impl FrameBuffers {
+    /// Sizes the buffers for `fft` (a no-op when they already fit).
+    fn fit(&mut self, fft: &dyn RealToComplex<f64>) {
+        if self.fft_in.len() != fft.len() || self.scratch.len() != fft.get_scratch_len() {
+            self.fft_in = fft.make_input_vec();
+            self.spectrum = fft.make_output_vec();
+            self.scratch = fft.make_scratch_vec();
+            self.power = vec![0.0; self.spectrum.len()];
+        }
+    }
+}
+
+thread_local! {
+    static FRAME_BUFFERS: std::cell::RefCell<FrameBuffers> = Default::default();
 }
 
 /// `dst[..x.len()] = x · window`, the rest of `dst` zero (the zero padding).
