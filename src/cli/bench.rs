@@ -126,6 +126,12 @@ fn mega(x: f64) -> String {
     format!("{:.1}", x * 1e-6)
 }
 
+/// A duration with at most three decimals and no trailing zeros (10, 0.1, 0.894).
+fn short(x: f64) -> String {
+    let s = format!("{x:.3}");
+    s.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
 fn pct(x: f64) -> String {
     format!("{:.0}", 100.0 * x)
 }
@@ -148,7 +154,7 @@ pub fn table_line(r: &BenchRow) -> String {
         r.front_end,
         r.bands,
         r.channels,
-        format!("{}s", r.seconds),
+        format!("{}s", short(r.seconds)),
         r.threads,
         r.wall_s,
         mega(r.samples_per_s),
