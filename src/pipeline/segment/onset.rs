@@ -214,7 +214,10 @@ pub struct RetriggerWatch {
     /// Index of the current block.
     block_index: u64,
     /// The last `gap_blocks` block maxima, not yet in the window.
-    delay: std::collections::VecDeque<f64>,
+    /// A ring of `gap_blocks` slots: `delay_len` of them filled, the oldest at `delay_head`.
+    delay: Vec<f64>,
+    delay_head: usize,
+    delay_len: usize,
     /// (block index, maximum) of the window's blocks, maxima strictly decreasing front to back.
     queue: std::collections::VecDeque<(u64, f64)>,
     /// `jump` × the window's maximum (fixed within a block).
@@ -238,7 +241,9 @@ impl RetriggerWatch {
             block_max: 0.0,
             block_fill: 0,
             block_index: 0,
-            delay: std::collections::VecDeque::new(),
+            delay: vec![0.0; gap_samples.div_ceil(block)],
+            delay_head: 0,
+            delay_len: 0,
             queue: std::collections::VecDeque::new(),
             threshold: 0.0,
         }
@@ -254,7 +259,8 @@ impl RetriggerWatch {
         self.block_max = 0.0;
         self.block_fill = 0;
         self.block_index = 0;
-        self.delay.clear();
+        self.delay_head = 0;
+        self.delay_len = 0;
         self.queue.clear();
         self.threshold = 0.0;
     }
@@ -262,9 +268,22 @@ impl RetriggerWatch {
     /// Closes the current block: its maximum enters the delay line; the oldest delayed block
     /// enters the window; blocks older than the window leave it.
     fn close_block(&mut self) {
-        self.delay.push_back(self.block_max);
-        if self.delay.len() > self.gap_blocks {
-            let m = self.delay.pop_front().unwrap_or(0.0);
+        // The block `gap_blocks` blocks back leaves the delay line (the one just closed when
+        // there is no gap).
+        let leaving = if self.gap_blocks == 0 {
+            Some(self.block_max)
+        } else if self.delay_len < self.gap_blocks {
+            let slot = (self.delay_head + self.delay_len) % self.gap_blocks;
+            self.delay[slot] = self.block_max;
+            self.delay_len += 1;
+            None
+        } else {
+            let oldest = self.delay[self.delay_head];
+            self.delay[self.delay_head] = self.block_max;
+            self.delay_head = (self.delay_head + 1) % self.gap_blocks;
+            Some(oldest)
+        };
+        if let Some(m) = leaving {
             let k = self.block_index - self.gap_blocks as u64;
             while self.queue.back().is_some_and(|&(_, v)| v <= m) {
                 self.queue.pop_back();
@@ -296,7 +315,13 @@ impl RetriggerWatch {
             // magnitude is no hit (or that lies in the grace period) is taken whole.
             let take = (self.block - self.block_fill).min(samples.len() - done);
             let piece = &samples[done..done + take];
-            let piece_max = max_finite_magnitude(piece);
+            let mut piece_max = 0.0f64;
+            for &x in piece {
+                // A non-finite sample counts as 0, as in the per-sample test below.
+                let a = x.abs();
+                let a = if a < f64::INFINITY { a } else { 0.0 };
+                piece_max = if a > piece_max { a } else { piece_max };
+            }
             let in_grace = self.seen + (take as u64) <= self.grace;
             if in_grace || piece_max < self.level || piece_max < self.threshold {
                 self.block_max = self.block_max.max(piece_max);
@@ -320,32 +345,6 @@ impl RetriggerWatch {
         }
         None
     }
-}
-
-/// The largest |x| of the finite samples (0 for none), in four independent lanes so that the
-/// loop vectorises: a non-finite sample counts as 0, as in the per-sample test.
-fn max_finite_magnitude(xs: &[f64]) -> f64 {
-    let lane = |m: f64, x: f64| {
-        let a = x.abs();
-        let a = if a < f64::INFINITY { a } else { 0.0 };
-        if a > m {
-            a
-        } else {
-            m
-        }
-    };
-    let mut m = [0.0f64; 4];
-    let chunks = xs.chunks_exact(4);
-    let rest = chunks.remainder();
-    for c in chunks {
-        for l in 0..4 {
-            m[l] = lane(m[l], c[l]);
-        }
-    }
-    let m = rest
-        .iter()
-        .fold(m[0].max(m[1]).max(m[2].max(m[3])), |m, &x| lane(m, x));
-    m
 }
 
 #[cfg(test)]
