@@ -18,11 +18,13 @@ use std::sync::Arc;
 use std::time::Instant;
 
 use crate::error::{Error, Result};
+use crate::output::raw::append_interleaved_f32_le;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{run_with, AnalysisConfig, RunOptions, StageTimes};
 use crate::plan::{BandLayout, FrontEndKind, FrontEndSpec};
 use crate::source::noise::GaussianNoise;
 use crate::source::raw::{RawFormat, RawSource};
+use crate::source::synth::{decaying_sines, Mode};
 use crate::source::{Block, Source};
 
 /// Default channel count of a bench run (the 64-channel array).
@@ -84,35 +86,36 @@ impl BenchInput {
         }
         let n = (seconds * fs_hz).round() as usize;
         let bytes = channels as f64 * n as f64 * 4.0;
-        crate::budget::check("the bench signal", bytes * 3.0)?;
+        // f64 per channel, their f32 encoding, one channel's synthesis in flight.
+        crate::budget::check("the bench signal", bytes * 5.0)?;
         let mut rng = GaussianNoise::new(BENCH_SEED);
         let uniform = |rng: &mut GaussianNoise, lo: f64, hi: f64| {
             lo + (hi - lo) * (rng.next_u64() >> 11) as f64 / 2f64.powi(53)
         };
-        let mut interleaved = vec![0f32; n * channels];
-        let mut x = vec![0.0; n];
-        for c in 0..channels {
-            x.iter_mut().for_each(|v| *v = 0.0);
-            for _ in 0..3 {
-                let f = uniform(&mut rng, 40.0, 0.4 * fs_hz);
-                let zeta = uniform(&mut rng, 0.005, 0.05);
-                let amplitude = uniform(&mut rng, 0.3, 1.0);
-                let phase = uniform(&mut rng, 0.0, 2.0 * std::f64::consts::PI);
-                let mode = crate::source::synth::Mode::new(f, zeta, amplitude, phase.to_degrees());
-                for (i, v) in x.iter_mut().enumerate() {
-                    *v += mode.value(i as f64 / fs_hz);
-                }
-            }
-            let peak = x
-                .iter()
-                .fold(0.0f64, |m, v| m.max(v.abs()))
-                .max(f64::MIN_POSITIVE);
-            let noise = 10f64.powf(-BENCH_NOISE_DB / 20.0);
-            for (i, v) in x.iter().enumerate() {
-                interleaved[i * channels + c] = (v / peak + noise * rng.next_gaussian()) as f32;
-            }
-        }
-        let bytes: Vec<u8> = interleaved.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let noise = 10f64.powf(-BENCH_NOISE_DB / 20.0);
+        let signals: Vec<Vec<f64>> = (0..channels)
+            .map(|_| {
+                let modes: Vec<Mode> = (0..3)
+                    .map(|_| {
+                        let f = uniform(&mut rng, 40.0, 0.4 * fs_hz);
+                        let zeta = uniform(&mut rng, 0.005, 0.05);
+                        let amplitude = uniform(&mut rng, 0.3, 1.0);
+                        let phase = uniform(&mut rng, 0.0, 2.0 * std::f64::consts::PI);
+                        Mode::new(f, zeta, amplitude, phase.to_degrees())
+                    })
+                    .collect();
+                let x = decaying_sines(&modes, fs_hz, seconds);
+                let peak = x
+                    .iter()
+                    .fold(0.0f64, |m, v| m.max(v.abs()))
+                    .max(f64::MIN_POSITIVE);
+                x.iter()
+                    .map(|v| v / peak + noise * rng.next_gaussian())
+                    .collect()
+            })
+            .collect();
+        let mut bytes = Vec::new();
+        append_interleaved_f32_le(&signals, &mut bytes);
         Ok(BenchInput {
             bytes: bytes.into(),
             format: RawFormat::F32,
@@ -275,23 +278,26 @@ pub fn bench_front_end(
     let mut row = BenchRow::new(input, kind.name(), bands.len(), threads, best);
     row.stages = Some(StageShares::of(&profiled.stages));
     if kind == FrontEndKind::Stft {
-        row.fft_bound_samples_per_s = Some(stft_fft_bound(input, &spec, threads, plan.repeat)?);
+        row.fft_bound_samples_per_s =
+            Some(stft_fft_bound(input, &spec, &bands, threads, plan.repeat)?);
     }
     Ok(row)
 }
 
 /// Channel-samples per second of an STFT that did nothing but its FFTs: realfft's r2c of the
 /// frame length (times the zero padding) once per hop over every channel, on `threads` threads;
-/// the best of `repeat` runs.
+/// the best of `repeat` runs. The frame length and hop are those of the STFT front end built for
+/// `bands`.
 pub fn stft_fft_bound(
     input: &BenchInput,
     spec: &FrontEndSpec,
+    bands: &[crate::frontend::Band],
     threads: usize,
     repeat: usize,
 ) -> Result<f64> {
-    let fs = input.fs_hz;
-    let win = (spec.stft.window_ms * 1e-3 * fs).round().max(1.0) as usize;
-    let hop = ((win as f64) * (1.0 - spec.stft.overlap)).round().max(1.0) as usize;
+    // The front end's own frame length and hop, as the STFT path uses them.
+    let stft = crate::frontend::stft::StftFrontEnd::new(spec.stft, input.fs_hz, bands)?;
+    let (win, hop) = (stft.window_samples(), stft.hop_samples());
     let nfft = win * spec.stft.zero_pad.max(1);
     let frames = input.frames();
     let per_channel = if frames >= win {

@@ -106,13 +106,8 @@ impl BenchArgs {
         let mut opened = open_input(path, &options)?;
         let info = opened.source.info().clone();
         let data = read_all(opened.source.as_mut(), MAX_WHOLE_SAMPLES)?;
-        let frames = data.first().map_or(0, Vec::len);
-        let mut bytes = Vec::with_capacity(frames * data.len() * 4);
-        for i in 0..frames {
-            for ch in &data {
-                bytes.extend_from_slice(&(ch[i] as f32).to_le_bytes());
-            }
-        }
+        let mut bytes = Vec::new();
+        crate::output::raw::append_interleaved_f32_le(&data, &mut bytes);
         Ok(vec![BenchInput {
             bytes: bytes.into(),
             format: RawFormat::F32,

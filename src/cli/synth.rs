@@ -88,9 +88,7 @@ fn write_signal(
             let mut buf = Vec::with_capacity(BLOCK_FRAMES * 4);
             while src.read_block(BLOCK_FRAMES, &mut block)? {
                 buf.clear();
-                for v in &block.channels[0] {
-                    buf.extend_from_slice(&(*v as f32).to_le_bytes());
-                }
+                crate::output::raw::append_interleaved_f32_le(&block.channels, &mut buf);
                 out.write_all(&buf)?;
             }
         }

@@ -4,6 +4,7 @@
 //! joined with `;`. Rows are flushed as they are written, so a reader downstream of a pipe sees
 //! each decay's results as soon as it ends.
 
+pub mod raw;
 pub mod recording_set;
 pub mod wav;
 

@@ -214,7 +214,6 @@ impl ChannelAnalyzer {
                 timed(Some(&mut clock.estimator_s), || trackers.push(f))
             }),
         }
-        let t_judge = self.clock.is_some().then(std::time::Instant::now);
         if self.decays > 0 && self.trackers.estimators.iter().all(|e| e.frames() == 0) {
             // A re-trigger too short for a single frame at the end of the input (e.g. the
             // wrap-around at the end of an impulse response made by inverse FFT) is not a decay.
@@ -223,23 +222,26 @@ impl ChannelAnalyzer {
             return;
         }
         let cut_short = self.front_end.decay_cut_short();
-        let mut estimates: Vec<DecayEstimate> = self
-            .trackers
-            .estimators
-            .iter()
-            .zip(&self.band_in_range)
-            .map(|(e, &ok)| {
-                if ok {
-                    e.provisional()
-                } else {
-                    DecayEstimate::failed(Flag::BandOutOfRange)
-                }
-            })
-            .collect();
-        judge_bands(&*self.front_end, &self.trackers.estimators, &mut estimates);
-        if let (Some(t0), Some(clock)) = (t_judge, &mut self.clock) {
-            clock.estimator_s += t0.elapsed().as_secs_f64();
-        }
+        let (front_end, estimators, in_range) = (
+            &*self.front_end,
+            &self.trackers.estimators,
+            &self.band_in_range,
+        );
+        let mut estimates = timed(self.clock.as_mut().map(|c| &mut c.estimator_s), || {
+            let mut estimates: Vec<DecayEstimate> = estimators
+                .iter()
+                .zip(in_range)
+                .map(|(e, &ok)| {
+                    if ok {
+                        e.provisional()
+                    } else {
+                        DecayEstimate::failed(Flag::BandOutOfRange)
+                    }
+                })
+                .collect();
+            judge_bands(front_end, estimators, &mut estimates);
+            estimates
+        });
         for est in &mut estimates {
             if truncated {
                 est.flags.push(Flag::InputTruncated);
