@@ -1,12 +1,10 @@
 //! `dampscope analyze INPUT`: decay times and damping ratios per band and channel.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
-
-use anyhow::Context;
+use std::io::Write;
 
 use super::args::{InputFormatArgs, PipelineArgs};
 use super::{EXIT_OK, EXIT_PARTIAL};
+use crate::output::atomic::AtomicFile;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline;
 use crate::plan::PreparedRun;
@@ -73,16 +71,27 @@ pub fn exit_code_of(summary: &pipeline::RunSummary) -> i32 {
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
     let opened = open_input(&args.input, &args.input_format.options())?;
     let run = prepare(&args.pipeline, opened.source)?;
-    let out: Box<dyn Write> = match &args.out {
-        Some(p) => Box::new(BufWriter::new(
-            File::create(p).with_context(|| format!("cannot create {}", p.display()))?,
-        )),
+    // A results file is written under a temporary name and renamed into place when the run
+    // ends, also when it ends on an error (it then holds every complete decay's rows, as the
+    // exit code says); a killed run leaves no file under the final name.
+    let mut file = match &args.out {
+        Some(p) => Some(AtomicFile::create(p)?),
+        None => None,
+    };
+    let out: Box<dyn Write + '_> = match &mut file {
+        Some(f) => Box::new(f),
         None => Box::new(std::io::stdout().lock()),
     };
     let mut writer = TableWriter::new(out, args.format);
-    writer.write_header()?;
-    let summary = pipeline::run(run.source, &run.factory, &run.config, |rows| {
-        writer.write_rows(rows)
-    })?;
+    let ran = writer.write_header().and_then(|_| {
+        pipeline::run(run.source, &run.factory, &run.config, |rows| {
+            writer.write_rows(rows)
+        })
+    });
+    drop(writer);
+    if let Some(f) = file {
+        f.commit()?;
+    }
+    let summary = ran?;
     Ok(exit_code_of(&summary))
 }

@@ -6,8 +6,6 @@
 //! `sensors_needed.csv` (the mean from every k-th sensor, section 4.2.1) and one PNG map per
 //! band (`map_<lo>-<hi>Hz.png`). Prints the global table.
 
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::PathBuf;
 
 use anyhow::Context;
@@ -16,6 +14,7 @@ use super::analyze::{exit_code_of, prepare};
 use super::args::InputFormatArgs;
 use super::args::PipelineArgs;
 use crate::analysis::maps::{band_maps, BandMap, GlobalDamping, MapError, SubsetMean};
+use crate::output::atomic::AtomicFile;
 use crate::output::write_csv_file;
 use crate::output::{TableFormat, TableWriter};
 use crate::pipeline::{self, ResultRow};
@@ -115,16 +114,18 @@ pub fn run(args: &MapArgs) -> anyhow::Result<i32> {
         .with_context(|| format!("cannot create {}", args.out.display()))?;
     let run = prepare(&args.pipeline, opened.source)?;
     let results = args.out.join("results.csv");
-    let file =
-        File::create(&results).with_context(|| format!("cannot create {}", results.display()))?;
-    let mut writer = TableWriter::new(BufWriter::new(file), TableFormat::Csv);
-    writer.write_header()?;
+    let mut file = AtomicFile::create(&results)?;
+    let mut writer = TableWriter::new(&mut file, TableFormat::Csv);
     let mut rows: Vec<ResultRow> = Vec::new();
-    let summary = pipeline::run(run.source, &run.factory, &run.config, |r| {
-        rows.extend_from_slice(r);
-        writer.write_rows(r)
-    })?;
-    drop(writer);
+    let ran = writer.write_header().and_then(|_| {
+        pipeline::run(run.source, &run.factory, &run.config, |r| {
+            rows.extend_from_slice(r);
+            writer.write_rows(r)
+        })
+    });
+    // Renamed into place also after an error: it holds every complete decay's rows.
+    file.commit()?;
+    let summary = ran?;
     let code = exit_code_of(&summary);
     let maps: Vec<BandMap> = band_maps(&rows, &sensors, args.decay)?;
     let globals: Vec<GlobalDamping> = maps.iter().map(BandMap::global).collect();

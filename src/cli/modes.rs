@@ -4,8 +4,6 @@ use std::io::Write;
 use std::path::PathBuf;
 use std::time::Instant;
 
-use anyhow::Context;
-
 use crate::sim::assembly::assemble;
 use crate::sim::eigen::{check_modes, lowest_modes_with, EigenOptions, ModeRequest};
 use crate::sim::model::Model;
@@ -76,8 +74,7 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
         text
     };
     match &args.out {
-        Some(path) => std::fs::write(path, text)
-            .with_context(|| format!("cannot write {}", path.display()))?,
+        Some(path) => crate::output::write_text_file(path, &text)?,
         None => std::io::stdout().lock().write_all(text.as_bytes())?,
     }
     if args.timings {

@@ -2,11 +2,11 @@
 //! or standard output, generated block by block so that `dampscope synth … | dampscope analyze -`
 //! streams.
 
-use std::fs::File;
 use std::io::{self, BufWriter, Write};
 
 use anyhow::{bail, Context};
 
+use crate::output::atomic::AtomicFile;
 use crate::output::WavStreamWriter;
 use crate::source::{Block, Mode, Source, SynthSource, SynthSpec};
 
@@ -113,9 +113,10 @@ pub fn run(args: &SynthArgs) -> anyhow::Result<()> {
     let src = SynthSource::new(args.spec())?;
     match &args.out {
         Some(path) => {
-            let f = File::create(path).with_context(|| format!("cannot create {path}"))?;
-            let mut w = BufWriter::new(f);
-            write_signal(src, args.format, &mut w).with_context(|| format!("writing {path}"))
+            // Whole or not at all: a killed run leaves no half signal under the final name.
+            let mut w = AtomicFile::create(std::path::Path::new(path))?;
+            write_signal(src, args.format, &mut w).with_context(|| format!("writing {path}"))?;
+            w.commit().with_context(|| format!("writing {path}"))
         }
         None => {
             let stdout = io::stdout();

@@ -52,7 +52,7 @@ pub fn write_diagnosis(out: &Path, d: &Diagnosis, recordings: &Path, model: &Pat
     let path = out.join("diagnosis.json");
     let text = serde_json::to_string_pretty(&json)
         .map_err(|e| Error::Output(format!("{}: {e}", path.display())))?;
-    std::fs::write(&path, text).map_err(failed(&path))?;
+    crate::output::write_text_file(&path, &text)?;
     // The updated model must load from the output directory: a sensor file is made absolute.
     let mut updated = d.updated_model.clone();
     if let (SensorSpec::File { file }, Some(base)) =
@@ -69,7 +69,7 @@ pub fn write_diagnosis(out: &Path, d: &Diagnosis, recordings: &Path, model: &Pat
             path.display()
         ))
     })?;
-    std::fs::write(&path, text).map_err(failed(&path))?;
+    crate::output::write_text_file(&path, &text)?;
     let rows: Vec<ModeRow> = d
         .evidence
         .pairs
@@ -99,7 +99,7 @@ pub fn write_diagnosis(out: &Path, d: &Diagnosis, recordings: &Path, model: &Pat
     write_csv_file(&out.join("modes.csv"), &rows)?;
     write_figures(out, &updated, d)?;
     let path = out.join("report.md");
-    std::fs::write(&path, report_markdown(d, recordings, model)).map_err(failed(&path))?;
+    crate::output::write_text_file(&path, &report_markdown(d, recordings, model))?;
     Ok(())
 }
 

@@ -4,6 +4,7 @@
 //! joined with `;`. Rows are flushed as they are written, so a reader downstream of a pipe sees
 //! each decay's results as soon as it ends.
 
+pub mod atomic;
 pub mod raw;
 pub mod recording_set;
 pub mod wav;
@@ -253,16 +254,23 @@ pub fn read_table(text: &str) -> Result<Vec<std::collections::HashMap<String, St
 
 /// Writes `rows` to `path` as CSV with a header row (the `csv` crate: quoting and escaping are
 /// its own). The one writer of every table file (`global.csv`, `modes.csv`, `sweep.csv`, …);
-/// an error names the file.
+/// the file appears whole or not at all ([`atomic`]); an error names the file.
 pub fn write_csv_file<T: serde::Serialize>(
     path: &std::path::Path,
     rows: impl IntoIterator<Item = T>,
 ) -> Result<()> {
-    let failed = |e: csv::Error| Error::Output(format!("{}: {e}", path.display()));
-    let mut w = csv::Writer::from_path(path).map_err(failed)?;
-    for r in rows {
-        w.serialize(r).map_err(failed)?;
-    }
-    w.flush()
-        .map_err(|e| Error::Output(format!("{}: {e}", path.display())))
+    atomic::write_file(path, |f| {
+        let mut w = csv::Writer::from_writer(f);
+        for r in rows {
+            w.serialize(r).map_err(std::io::Error::other)?;
+        }
+        w.flush()
+    })
+    .map_err(|e| Error::Output(e.to_string()))
+}
+
+/// Writes `text` to `path`, whole or not at all ([`atomic`]); an error names the file.
+pub fn write_text_file(path: &std::path::Path, text: &str) -> Result<()> {
+    atomic::write_file(path, |f| f.write_all(text.as_bytes()))
+        .map_err(|e| Error::Output(e.to_string()))
 }

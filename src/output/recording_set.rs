@@ -2,10 +2,10 @@
 //! channel limit), `sensors.csv`, `excitation.csv` and `meta.json`, as
 //! [`crate::source::recording_set`] reads them back.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 
+use super::atomic::AtomicFile;
 use super::wav::{write_wav_f32, WavStreamWriter, MAX_FLOAT_WAV_CHANNELS};
 use crate::source::recording_set::{io_err, Excitation, RecordingMeta, Sensor};
 use crate::source::{Block, Source, SourceError};
@@ -168,31 +168,25 @@ fn write_set(
         });
     }
     std::fs::create_dir_all(dir).map_err(|e| io_err(dir, e))?;
-    let write = |name: &str, f: &dyn Fn(&mut dyn Write) -> std::io::Result<()>| {
+    // Every file is written under a temporary name first (the responses, the long part, before
+    // the rest). Then the old responses go, the small files are renamed into place, and the
+    // responses last: the set is readable (it has a responses file) only once every file in it
+    // is new. A run killed on the way leaves hidden `.partial` files and no set, never a set
+    // whose responses and sensors disagree.
+    let staged = |name: &str, f: &dyn Fn(&mut dyn Write) -> std::io::Result<()>| {
         let path = dir.join(name);
-        let file = File::create(&path).map_err(|e| io_err(&path, e))?;
-        let mut w = BufWriter::new(file);
-        f(&mut w)
-            .and_then(|_| w.flush())
-            .map_err(|e| io_err(&path, e))
+        let mut w = AtomicFile::create(&path).map_err(|e| io_err(&path, e))?;
+        f(&mut w).map_err(|e| io_err(&path, e))?;
+        Ok::<_, SourceError>(w)
     };
-    {
-        // A stale responses file of the other kind would be read instead (the WAV wins).
-        for stale in ["responses.wav", "responses.csv"] {
-            let path = dir.join(stale);
-            if stale != responses_name && path.exists() {
-                std::fs::remove_file(&path).map_err(|e| io_err(&path, e))?;
-            }
-        }
+    let responses = {
         let path = dir.join(responses_name);
-        let file = File::create(&path).map_err(|e| io_err(&path, e))?;
-        let mut w = BufWriter::new(file);
-        write_responses(&mut w)
-            .and_then(|_| w.flush())
-            .map_err(|e| io_err(&path, e))?;
-    }
+        let mut w = AtomicFile::create(&path).map_err(|e| io_err(&path, e))?;
+        write_responses(&mut w).map_err(|e| io_err(&path, e))?;
+        w
+    };
     let with_z = sensors.iter().any(|s| s.z_m.is_some());
-    write("sensors.csv", &|w| {
+    let sensors_file = staged("sensors.csv", &|w| {
         let mut table = csv::Writer::from_writer(w);
         let header: &[&str] = if with_z {
             &["id", "x", "y", "z", "dir"]
@@ -210,7 +204,7 @@ fn write_set(
         }
         table.flush()
     })?;
-    write("excitation.csv", &|w| {
+    let excitation_file = staged("excitation.csv", &|w| {
         let mut table = csv::Writer::from_writer(w);
         table.write_record(["x", "y", "dir", "force"])?;
         for e in excitation {
@@ -228,8 +222,21 @@ fn write_set(
         fs: Some(sample_rate_hz),
         ..meta.clone()
     };
-    write("meta.json", &|w| {
+    let meta_file = staged("meta.json", &|w| {
         serde_json::to_writer_pretty(&mut *w, &meta).map_err(std::io::Error::other)?;
         writeln!(w)
-    })
+    })?;
+    // Old responses of either kind go first (a stale file of the other kind would also be read
+    // instead: the WAV wins).
+    for stale in ["responses.wav", "responses.csv"] {
+        let path = dir.join(stale);
+        if path.exists() {
+            std::fs::remove_file(&path).map_err(|e| io_err(&path, e))?;
+        }
+    }
+    for file in [sensors_file, excitation_file, meta_file, responses] {
+        let path = file.target().to_path_buf();
+        file.commit().map_err(|e| io_err(&path, e))?;
+    }
+    Ok(())
 }

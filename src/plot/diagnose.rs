@@ -42,7 +42,9 @@ pub fn mode_errors(d: &Diagnosis, path: &Path) -> Result<()> {
         return Err(Error::Output("plot: no paired modes".into()));
     }
     let fmax = rows.iter().map(|r| r.0).fold(0.0, f64::max) * 1.05;
-    let root = BitMapBackend::new(path, (1200, 800)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (1200, 800)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let panels = root.split_evenly((2, 1));
     let specs = [
@@ -90,6 +92,7 @@ pub fn mode_errors(d: &Diagnosis, path: &Path) -> Result<()> {
         }
     }
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }
 
@@ -113,7 +116,9 @@ pub fn residual_map(
     }
     let (lx, ly) = plate_m;
     let big = values.iter().fold(1e-300f64, |m, v| m.max(v.abs()));
-    let root = BitMapBackend::new(path, (700, 950)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (700, 950)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 18))
@@ -177,6 +182,7 @@ pub fn residual_map(
         }
     }
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }
 
@@ -191,7 +197,9 @@ pub fn frf_overlay(d: &Diagnosis, path: &Path) -> Result<()> {
     }
     let f0 = o.frequencies_hz[0];
     let f1 = *o.frequencies_hz.last().expect("not empty");
-    let root = BitMapBackend::new(path, (1200, 330 * o.curves.len() as u32)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (1200, 330 * o.curves.len() as u32)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let panels = root.split_evenly((o.curves.len(), 1));
     for (k, (area, curves)) in panels.iter().zip(&o.curves).enumerate() {
@@ -243,5 +251,6 @@ pub fn frf_overlay(d: &Diagnosis, path: &Path) -> Result<()> {
         }
     }
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }

@@ -90,7 +90,9 @@ pub fn damping_map(map: &BandMap, path: &Path) -> Result<()> {
     let plot_w = 700.0;
     let plot_h = (plot_w * (y1 - y0) / (x1 - x0)).clamp(250.0, 1400.0);
     let (w, hgt) = (plot_w as u32 + 330, plot_h as u32 + 190);
-    let root = BitMapBackend::new(path, (w, hgt)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (w, hgt)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let (main, bar) = root.split_horizontally(w - 190);
     let mean = |v: Option<f64>| v.map_or("—".to_string(), |v| format!("{:.2} %", 100.0 * v));
@@ -179,6 +181,7 @@ pub fn damping_map(map: &BandMap, path: &Path) -> Result<()> {
     ))
     .map_err(plot_err)?;
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }
 

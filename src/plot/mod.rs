@@ -85,7 +85,9 @@ pub fn sweep_heatmap(rows: &[SweepRow], path: &Path) -> Result<()> {
         return Err(Error::Output("plot: no sweep rows to draw".into()));
     }
     let (w, h) = (1600u32, 300 + 380 * cases.len() as u32);
-    let root = BitMapBackend::new(path, (w, h)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (w, h)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let (title, body) = root.split_vertically(110);
     title
@@ -169,5 +171,6 @@ pub fn sweep_heatmap(rows: &[SweepRow], path: &Path) -> Result<()> {
             .map_err(plot_err)?;
     }
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }

@@ -29,7 +29,9 @@ pub fn stabilisation_diagram(
         return Err(Error::Output("plot: empty frequency range".into()));
     }
     let max_order = result.diagram.iter().map(|p| p.order).max().unwrap_or(1) as f64 + 1.0;
-    let root = BitMapBackend::new(path, (1400, 700)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (1400, 700)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
@@ -86,6 +88,7 @@ pub fn stabilisation_diagram(
         .draw_series(points(PoleClass::Stable).map(|p| Circle::new(p, 3, STABLE.filled())))
         .map_err(plot_err)?;
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }
 
@@ -113,7 +116,9 @@ pub fn mode_shape(
         .iter()
         .fold(0.0f64, |m, v| m.max(v.abs()))
         .max(1e-300);
-    let root = BitMapBackend::new(path, (700, 900)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (700, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let mut chart = ChartBuilder::on(&root)
         .caption(title, ("sans-serif", 20))
@@ -141,6 +146,7 @@ pub fn mode_shape(
         }))
         .map_err(plot_err)?;
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }
 

@@ -55,7 +55,9 @@ pub fn resynthesis_figure(
             "plot: no frequencies inside the bands".into(),
         ));
     }
-    let root = BitMapBackend::new(path, (1200, 900)).into_drawing_area();
+    let staged = crate::output::atomic::StagedPath::new(path);
+    let temp = staged.path().to_path_buf();
+    let root = BitMapBackend::new(&temp, (1200, 900)).into_drawing_area();
     root.fill(&WHITE).map_err(plot_err)?;
     let (top, bottom) = root.split_vertically(520);
     let mut chart = ChartBuilder::on(&top)
@@ -142,5 +144,6 @@ pub fn resynthesis_figure(
         )
         .map_err(plot_err)?;
     root.present().map_err(plot_err)?;
+    staged.commit().map_err(plot_err)?;
     Ok(())
 }
