@@ -7,6 +7,7 @@
 mod common;
 mod sim_frf_support;
 
+mod atomic_outputs;
 mod cli_analyze;
 mod cli_bench;
 mod cli_demo;
