@@ -74,5 +74,6 @@ pub mod plot;
 pub mod presets;
 pub mod sim;
 pub mod source;
+pub mod uff;
 
 pub use error::{Error, Result};
