@@ -1,6 +1,7 @@
 //! Dataset 58/58b: round trips, hand-written files in the spec's layouts, hostile input.
 
 use super::*;
+use crate::uff::write_function58;
 use crate::uff::{parse_uff, Dataset, UffError};
 
 fn close(a: f64, b: f64, rel: f64) -> bool {

@@ -28,13 +28,13 @@ mod dataset58;
 mod fortran;
 mod nodes;
 mod reader;
+mod write58;
 
 pub use dataset55::{write_mode_shape55, ModeShape55, NodeValues, ShapeAnalysis};
-pub use dataset58::{
-    write_function58, Abscissa, AxisInfo, Function58, FunctionType, NodeDof, Ordinate,
-};
+pub use dataset58::{Abscissa, AxisInfo, Function58, FunctionType, NodeDof, Ordinate};
 pub use nodes::{write_nodes15, write_nodes2411, Node, NodeFormat, NodeSet, Units164};
 pub use reader::{parse_uff, read_uff};
+pub use write58::write_function58;
 
 /// Why a universal file could not be read or written. Every variant names the dataset (`58`,
 /// `58b`, `2411`, … or `none` between datasets) and, when reading, the 1-based line.

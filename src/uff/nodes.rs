@@ -9,9 +9,9 @@
 
 use std::io::Write;
 
-use super::dataset58::i_field;
 use super::fortran::{self, columns, e_field, text};
 use super::reader::{bad_number, malformed, quote, read_reals, truncated, Line};
+use super::write58::i_field;
 use super::UffError;
 
 /// One node: label, coordinate systems, colour, coordinates in the file's length unit.
