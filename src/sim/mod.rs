@@ -7,6 +7,7 @@ pub mod error;
 pub mod factored;
 pub mod frf;
 pub mod impulse;
+pub mod limits;
 pub mod mesh;
 pub mod model;
 pub mod poles;

@@ -10,6 +10,7 @@ use super::error::SimError;
 use super::factored::FactoredFrf;
 use super::frf::{direct_frf, Frf, FrfError};
 use super::impulse::impulse_response;
+use super::limits::ModelSize;
 use super::model::{Excitation, Model};
 use super::reduced::{BasisOptions, ReducedModel, ReducedSolve};
 use super::stream::{streamed_bytes, SimulatedSource};
@@ -145,58 +146,29 @@ fn progress_bar(enabled: bool, phases: u64) -> indicatif::ProgressBar {
     }
 }
 
-/// Sensors of a grid model (`None` for a sensor file, read later and counted as 1000).
-fn sensor_count(model: &Model) -> Option<usize> {
-    match &model.output.sensors {
-        crate::sim::model::SensorSpec::Grid { nx, ny } => Some(nx.saturating_mul(*ny)),
-        crate::sim::model::SensorSpec::File { .. } => None,
-    }
-}
-
 /// Bytes a simulation of `model` needs at most when it holds every output (see
 /// [`memory_estimate`]).
 pub fn memory_estimate_bytes(model: &Model) -> f64 {
     memory_estimate(model, true)
 }
 
-/// Bytes a simulation of `model` needs, estimated from its sizes before anything is allocated:
-/// the sparse stiffness and mass (81 couplings per dof), the shift-invert factor (banded bound:
-/// 9 (nz + 1)(min(nx, ny) + 1) per dof), the Lanczos basis (at most 2000 vectors), and, when
-/// `held_outputs`, per sensor its FRF (complex, fmax/df + 1 lines) and impulse response
-/// (2 fmax/df samples), twice over while the recording set is written. A streamed simulation is
-/// checked again once its basis size is known ([`streamed_bytes`]).
+/// Bytes a simulation of `model` needs, estimated from its sizes before anything is allocated
+/// ([`ModelSize`]): the system (matrices, factor, basis) and, when `held_outputs`, every
+/// sensor's FRF and impulse response. A streamed simulation is checked again once its basis
+/// size is known ([`streamed_bytes`]).
 pub fn memory_estimate(model: &Model, held_outputs: bool) -> f64 {
-    let m = &model.mesh;
-    let (nx, ny, nz) = (m.nx as f64, m.ny as f64, m.nz as f64);
-    let dofs = 3.0 * (nx + 1.0) * (ny + 1.0) * (nz + 1.0);
-    let matrices = dofs * 81.0 * 12.0 * 2.0;
-    let factor = dofs * 9.0 * (nz + 1.0) * (nx.min(ny) + 1.0) * 8.0;
-    let basis = dofs * dofs.min(2000.0) * 8.0;
-    if !held_outputs {
-        return matrices + factor + basis;
-    }
-    let lines = (model.output.fmax / model.output.df).max(1.0) + 1.0;
-    let sensors = sensor_count(model).unwrap_or(1000) as f64;
-    let outputs = sensors * (lines * 16.0 + 2.0 * lines * 8.0) * 2.0;
-    matrices + factor + basis + outputs
+    let size = ModelSize::of(model);
+    size.system_bytes()
+        + if held_outputs {
+            size.held_output_bytes()
+        } else {
+            0.0
+        }
 }
 
 /// Refuses `model` when `estimate` bytes exceed the process memory budget.
 fn check_budget(model: &Model, estimate: f64) -> Result<(), SimError> {
-    crate::budget::check(
-        &format!(
-            "simulating a {}×{}×{} mesh with {} sensors",
-            model.mesh.nx,
-            model.mesh.ny,
-            model.mesh.nz,
-            sensor_count(model).map_or("listed".into(), |n| n.to_string())
-        ),
-        estimate,
-    )
-    .map_err(|e| SimError::InvalidValue {
-        key: "model size".into(),
-        message: e.to_string(),
-    })
+    super::limits::check_budget(model, "simulating", estimate)
 }
 
 /// Simulates `model`: assembly, modes (if the method needs them), FRFs over 0…fmax at df,

@@ -71,7 +71,9 @@ impl Model {
             non_negative("damping.rayleigh.alpha", d.rayleigh.alpha)?;
             non_negative("damping.rayleigh.beta", d.rayleigh.beta)?;
         }
-        Ok(())
+        // Last: a model of valid values may still be too large for this machine; refused here,
+        // before the mesh or any matrix is allocated.
+        super::limits::check_system_fits(self)
     }
 
     fn validate_patch(&self, i: usize, p: &Patch) -> Result<(), SimError> {

@@ -42,6 +42,7 @@ mod pyrato_reference;
 mod regression_channel_panic_isolated;
 mod regression_contradictions;
 mod regression_ifft_wraparound;
+mod regression_hostile_inputs;
 mod regression_measured_records;
 mod regression_memory_limits;
 mod regression_merged_hits;

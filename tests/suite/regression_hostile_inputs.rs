@@ -1,0 +1,182 @@
+//! Hostile input as a new user might give it (issue 12's probe): none may abort the process.
+//! Each case must end with a typed message and a meaningful exit code (1 error, 2 usage, 3
+//! partial), never a signal (an allocation failure aborts with SIGABRT, exit 134). The one case
+//! the probe found aborting — a 5000 × 5000 mesh (`memory allocation of 1306800000000 bytes
+//! failed`) — is refused now when the model is loaded, in well under a second, naming the
+//! sizes, the estimate and the limit.
+
+use std::time::{Duration, Instant};
+
+use crate::common::{fresh_dir, run_dampscope as dampscope};
+
+/// Runs `args` with `stdin`; asserts a clean ending with one of `codes` and `words` on stderr.
+fn clean_failure(args: &[&str], stdin: &[u8], codes: &[i32], words: &[&str]) -> Duration {
+    let t0 = Instant::now();
+    let o = dampscope(args, stdin);
+    let took = t0.elapsed();
+    let e = String::from_utf8_lossy(&o.stderr);
+    let code = o.status.code();
+    assert!(
+        code.is_some_and(|c| codes.contains(&c)),
+        "{args:?}: exit {:?} (a signal if None), want one of {codes:?}\n{e}",
+        o.status
+    );
+    assert!(!e.contains("panicked"), "{args:?} panicked:\n{e}");
+    for w in words {
+        assert!(e.contains(w), "{args:?}: stderr should contain {w:?}:\n{e}");
+    }
+    took
+}
+
+/// A WAV header (PCM 16-bit) with the given channel count and claimed data size, then `data`.
+fn wav_header(channels: u16, claimed_data_bytes: u32, data: &[u8]) -> Vec<u8> {
+    let mut w = Vec::new();
+    w.extend_from_slice(b"RIFF");
+    w.extend_from_slice(&claimed_data_bytes.saturating_add(36).to_le_bytes());
+    w.extend_from_slice(b"WAVEfmt ");
+    w.extend_from_slice(&16u32.to_le_bytes());
+    w.extend_from_slice(&1u16.to_le_bytes());
+    w.extend_from_slice(&channels.to_le_bytes());
+    w.extend_from_slice(&4000u32.to_le_bytes());
+    w.extend_from_slice(&(8000 * u32::from(channels)).to_le_bytes());
+    w.extend_from_slice(&(2 * channels as u32).min(u16::MAX as u32).to_le_bytes()[..2]);
+    w.extend_from_slice(&16u16.to_le_bytes());
+    w.extend_from_slice(b"data");
+    w.extend_from_slice(&claimed_data_bytes.to_le_bytes());
+    w.extend_from_slice(data);
+    w
+}
+
+#[test]
+fn a_5000_by_5000_mesh_is_refused_in_under_a_second_by_every_command() {
+    let dir = fresh_dir("hostile-mesh");
+    let text = std::fs::read_to_string(
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("examples/plate-homogeneous.toml"),
+    )
+    .unwrap()
+    .replace("nx = 32", "nx = 5000")
+    .replace("ny = 48", "ny = 5000");
+    let model = dir.join("huge.toml");
+    std::fs::write(&model, text).unwrap();
+    let m = model.to_str().unwrap();
+    let out = dir.join("out");
+    let o = out.to_str().unwrap();
+    let words = ["5000×5000×2 mesh", "225.1 M dofs", "more than the limit"];
+    for args in [
+        vec!["modes", "--model", m],
+        vec!["simulate", "--model", m, "--out", o],
+        vec!["--max-memory", "64G", "simulate", "--model", m, "--out", o],
+        vec![
+            "analyze",
+            "--model",
+            m,
+            "--bands",
+            "model",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4096",
+            "--channels",
+            "1",
+        ],
+    ] {
+        let took = clean_failure(&args, &[0u8; 4096], &[1], &words);
+        assert!(took < Duration::from_secs(1), "{args:?} took {took:?}");
+    }
+    assert!(!out.exists(), "nothing written");
+}
+
+#[test]
+fn broken_inputs_end_with_a_message_not_a_signal() {
+    let mut random = Vec::new();
+    let mut x = 0x9e3779b97f4a7c15u64;
+    for _ in 0..5000 {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        random.push(x as u8);
+    }
+    let nan_csv = b"time,a\n0,0.5\n0.001,NaN\n0.002,0.25\n".to_vec();
+    let cases: Vec<(&str, Vec<&str>, Vec<u8>)> = vec![
+        ("empty", vec!["analyze", "-"], Vec::new()),
+        ("random bytes", vec!["analyze", "-"], random.clone()),
+        (
+            "random raw f32 without a rate",
+            vec!["analyze", "-", "--raw", "f32"],
+            random.clone(),
+        ),
+        (
+            "ragged csv",
+            vec!["analyze", "-", "--fs", "1000"],
+            b"a,b\n1,2\n3\n4,5,6\n".to_vec(),
+        ),
+        (
+            "truncated wav",
+            vec!["analyze", "-"],
+            wav_header(2, 8000, &[0u8; 100]),
+        ),
+        (
+            "a header claiming 2^31 bytes",
+            vec!["analyze", "-"],
+            wav_header(1, 1 << 31, &[0u8; 64]),
+        ),
+        ("zero channels", vec!["analyze", "-"], wav_header(0, 0, &[])),
+        (
+            "65535 channels",
+            vec!["analyze", "-"],
+            wav_header(65535, 65535 * 2 * 4, &[0u8; 4096]),
+        ),
+        ("NaN samples", vec!["analyze", "-", "--fs", "1000"], nan_csv),
+        (
+            "an absurd window",
+            vec![
+                "analyze",
+                "-",
+                "--raw",
+                "f32",
+                "--fs",
+                "4096",
+                "--window-ms",
+                "1e12",
+            ],
+            vec![0u8; 4096],
+        ),
+        (
+            "two million bands",
+            vec![
+                "analyze",
+                "-",
+                "--raw",
+                "f32",
+                "--fs",
+                "4096",
+                "--bands",
+                "1:2000001:1",
+            ],
+            vec![0u8; 4096],
+        ),
+        (
+            "a zero sample rate",
+            vec!["analyze", "-", "--raw", "f32", "--fs", "0"],
+            vec![0u8; 64],
+        ),
+    ];
+    for (what, args, stdin) in cases {
+        let o = dampscope(&args, &stdin);
+        let e = String::from_utf8_lossy(&o.stderr);
+        let code = o.status.code();
+        assert!(
+            matches!(code, Some(0..=3)),
+            "{what}: exit {:?} (None = killed by a signal)\n{e}",
+            o.status
+        );
+        assert!(!e.contains("panicked"), "{what} panicked:\n{e}");
+        if code != Some(0) {
+            assert!(
+                e.starts_with("dampscope: ") || e.starts_with("error: "),
+                "{what}: {e}"
+            );
+        }
+    }
+}
