@@ -132,6 +132,7 @@ pub trait Source: Send {
 // without a single frame is `Empty`, and a call may return fewer frames than asked (what has
 // arrived on a pipe).
 pub mod csv;
+pub mod frf;
 mod frames;
 pub mod memory;
 pub mod noise;

@@ -26,6 +26,7 @@
 mod dataset55;
 mod dataset58;
 mod fortran;
+pub mod import;
 mod nodes;
 mod reader;
 mod write58;
