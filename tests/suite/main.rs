@@ -65,3 +65,4 @@ mod sim_stream;
 mod sources_formats;
 mod sources_inputs;
 mod sources_synth;
+mod uff_format;
