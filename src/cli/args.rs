@@ -11,8 +11,8 @@ use crate::frontend::bands::parse_band;
 use crate::frontend::stft::{StftSettings, DEFAULT_OVERLAP, DEFAULT_WINDOW_MS, DEFAULT_ZERO_PAD};
 use crate::frontend::{Band, FilterDirection};
 use crate::pipeline::segment::{
-    Segmentation, DEFAULT_END_DROP_DB, DEFAULT_ONSET_LEVEL_DB, DEFAULT_RETRIGGER_DB,
-    DEFAULT_RETRIGGER_JUMP_DB,
+    Segmentation, DEFAULT_END_DROP_DB, DEFAULT_FLOOR_FLAT_DB, DEFAULT_FLOOR_MIN_S,
+    DEFAULT_ONSET_LEVEL_DB, DEFAULT_RETRIGGER_DB, DEFAULT_RETRIGGER_JUMP_DB,
 };
 use crate::plan::bands::DEFAULT_MAX_BAND_HZ;
 use crate::plan::{AnalysisPlan, BandLayout, BandSpec, FrontEndKind, FrontEndSpec};
@@ -227,6 +227,14 @@ pub struct PipelineArgs {
     /// within --retrigger-db of the peak) is a new hit and starts a new decay; `inf` never splits.
     #[arg(long, default_value_t = DEFAULT_RETRIGGER_JUMP_DB, value_name = "DB")]
     pub retrigger_jump_db: f64,
+    /// A decay also ends once it is this old (s) and every band has sat on its noise floor for
+    /// the last half of it; `inf` never (then only the drop, a new hit or --max-decay-s end it).
+    #[arg(long, default_value_t = DEFAULT_FLOOR_MIN_S, value_name = "S")]
+    pub floor_min_s: f64,
+    /// A band is on its floor when its last quarter is at most this many dB below the quarter
+    /// before.
+    #[arg(long, default_value_t = DEFAULT_FLOOR_FLAT_DB, value_name = "DB")]
+    pub floor_flat_db: f64,
     /// Reproduce another tool: `pyrato` sets --front-end octave --filter-direction forward
     /// --filter-order 14 --frame-ms 0.1 --noise-margin-db 0 --min-r2 0 --max-curvature-pct inf
     /// and pyrato's EDT limits (these options are then ignored).
@@ -249,6 +257,8 @@ impl PipelineArgs {
                     end_drop_db: self.end_drop_db,
                     retrigger_db: self.retrigger_db,
                     retrigger_jump_db: self.retrigger_jump_db,
+                    floor_min_s: self.floor_min_s,
+                    floor_flat_db: self.floor_flat_db,
                     ..Default::default()
                 },
                 ..Default::default()

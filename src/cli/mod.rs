@@ -120,6 +120,8 @@ const FIELDS_WITH_FLAGS: &[&str] = &[
     "end_drop_db",
     "retrigger_db",
     "retrigger_jump_db",
+    "floor_min_s",
+    "floor_flat_db",
     "front_end",
     "model",
     "mode_cutoff_factor",

@@ -33,7 +33,7 @@ pub fn analyze_decay_with<E: DecayEstimator>(
         .iter()
         .map(|b| new_estimator(b, period))
         .collect();
-    let mut trackers = BandTrackers::new(estimators, f64::INFINITY);
+    let mut trackers = BandTrackers::new(estimators, f64::INFINITY, None);
     front_end.process(samples, &mut |f: Frame<'_>| trackers.push(f));
     front_end.finish(&mut |f: Frame<'_>| trackers.push(f));
     let cut_short = front_end.decay_cut_short();
@@ -101,21 +101,49 @@ pub(super) fn judge_bands<E: DecayEstimator>(
     }
 }
 
-/// Per-band estimators plus the end-of-decay test.
+/// When a decay may end on its noise floor ([`crate::pipeline::Segmentation::floor_min_s`]).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct FloorEnd {
+    /// Frames a decay holds at least before it may end on its floor.
+    pub(super) min_frames: usize,
+    /// Energy ratio (≤ 1) that the last quarter must reach against the one before.
+    pub(super) flat_factor: f64,
+}
+
+impl FloorEnd {
+    /// The floor test for frames of `frame_period_s`; `None` when `floor_min_s` is infinite.
+    pub(super) fn new(floor_min_s: f64, floor_flat_db: f64, frame_period_s: f64) -> Option<Self> {
+        let frames = floor_min_s / frame_period_s;
+        (frames.is_finite() && frame_period_s > 0.0).then(|| FloorEnd {
+            min_frames: (frames.ceil() as usize).max(8),
+            flat_factor: 10f64.powf(-floor_flat_db / 10.0),
+        })
+    }
+}
+
+/// Per-band estimators plus the end-of-decay tests.
 pub(super) struct BandTrackers<E: DecayEstimator = OnlineSchroeder> {
     pub(super) estimators: Vec<E>,
     peak: Vec<f64>,
     end_factor: f64,
+    floor: Option<FloorEnd>,
+    /// Per band, the running sum of its frame energies (`[0]` = 0): quarter means in O(1).
+    cumulative: Vec<Vec<f64>>,
+    frames: usize,
     pub(super) ended: bool,
 }
 
 impl<E: DecayEstimator> BandTrackers<E> {
-    /// Trackers over one estimator per band; a decay ends when every band fell `end_drop_db`.
-    pub(super) fn new(estimators: Vec<E>, end_drop_db: f64) -> Self {
+    /// Trackers over one estimator per band; a decay ends when every band fell `end_drop_db`,
+    /// or (with `floor`) has sat on its floor for the last half of a decay old enough.
+    pub(super) fn new(estimators: Vec<E>, end_drop_db: f64, floor: Option<FloorEnd>) -> Self {
         BandTrackers {
             peak: vec![0.0; estimators.len()],
+            cumulative: vec![vec![0.0]; if floor.is_some() { estimators.len() } else { 0 }],
             estimators,
             end_factor: 10f64.powf(-end_drop_db / 10.0),
+            floor,
+            frames: 0,
             ended: false,
         }
     }
@@ -123,6 +151,8 @@ impl<E: DecayEstimator> BandTrackers<E> {
     pub(super) fn reset(&mut self) {
         self.estimators.iter_mut().for_each(|e| e.reset());
         self.peak.iter_mut().for_each(|p| *p = 0.0);
+        self.cumulative.iter_mut().for_each(|c| c.truncate(1));
+        self.frames = 0;
         self.ended = false;
     }
 
@@ -140,6 +170,34 @@ impl<E: DecayEstimator> BandTrackers<E> {
             self.peak[k] = self.peak[k].max(e);
             all_low &= e <= self.peak[k] * self.end_factor;
         }
-        self.ended = all_low && self.end_factor > 0.0;
+        self.frames += 1;
+        for (k, (c, &e)) in self.cumulative.iter_mut().zip(frame.energy).enumerate() {
+            let last = c[c.len() - 1];
+            // A band past its own end (buffered banks) repeats its last frame: neutral.
+            let e = if frame.active.is_some_and(|a| !a[k]) {
+                c.len().checked_sub(2).map_or(0.0, |i| last - c[i])
+            } else {
+                e
+            };
+            c.push(last + e);
+        }
+        self.ended = (all_low && self.end_factor > 0.0) || self.on_floor();
+    }
+
+    /// True when the decay is old enough and every band's last quarter is not lower than the
+    /// quarter before by more than the floor's flatness (its last half is a floor).
+    fn on_floor(&self) -> bool {
+        let Some(floor) = self.floor else {
+            return false;
+        };
+        let n = self.frames;
+        if n < floor.min_frames {
+            return false;
+        }
+        let q = n / 4;
+        self.cumulative.iter().all(|c| {
+            let (a, b, z) = (c[n - 2 * q], c[n - q], c[n]);
+            z - b >= (b - a) * floor.flat_factor
+        })
     }
 }

@@ -1,6 +1,6 @@
 //! One channel's stream: decay onsets, new hits, the front end and the band estimators.
 
-use super::bands::{judge_bands, BandTrackers};
+use super::bands::{judge_bands, BandTrackers, FloorEnd};
 use super::segment::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
 use super::segment::RETRIGGER_MIN_FREQUENCY_HZ;
 use super::{AnalysisConfig, ResultRow};
@@ -113,6 +113,11 @@ impl ChannelAnalyzer {
                     })
                     .collect(),
                 config.segmentation.end_drop_db,
+                FloorEnd::new(
+                    config.segmentation.floor_min_s,
+                    config.segmentation.floor_flat_db,
+                    front_end.resolution().frame_period_s,
+                ),
             ),
             name,
             sample_rate_hz,

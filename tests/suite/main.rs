@@ -47,6 +47,7 @@ mod regression_measured_records;
 mod regression_memory_limits;
 mod regression_merged_hits;
 mod regression_row_order;
+mod regression_sparse_hits;
 mod regression_two_hits;
 mod report_fe_single_mode;
 mod report_maps;

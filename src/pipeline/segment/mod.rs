@@ -3,7 +3,8 @@
 //! A decay starts at its onset (the first sample within `onset_level_db` of its peak,
 //! [`onset`]); it ends when every band fell `end_drop_db` below its peak, after `max_decay_s`,
 //! when a new hit comes (a sample `retrigger_jump_db` above the signal before it), or with the
-//! input. After a decay, a sample within `retrigger_db` of its peak starts the next one.
+//! input, or once it has sat on its noise floor long enough to place it (`floor_min_s`). After a
+//! decay, a sample within `retrigger_db` of its peak starts the next one.
 
 pub mod onset;
 
@@ -29,6 +30,14 @@ pub struct Segmentation {
     /// its rise) is a new hit: the decay ends there and a new one starts
     /// ([`DEFAULT_RETRIGGER_JUMP_DB`]; infinity never splits).
     pub retrigger_jump_db: f64,
+    /// A decay also ends once it is at least this old, s, and every band has sat on a floor
+    /// for the last half of it (the level of its last quarter not more than `floor_flat_db`
+    /// below that of the quarter before): a noise floor long enough for the estimator to place
+    /// it ([`DEFAULT_FLOOR_MIN_S`]; infinity: never). Bounds memory on a stream of sparse hits
+    /// over a noise floor, where `end_drop_db` is never reached.
+    pub floor_min_s: f64,
+    /// How flat a floor is, dB ([`DEFAULT_FLOOR_FLAT_DB`]).
+    pub floor_flat_db: f64,
 }
 
 /// Default of [`Segmentation::onset_level_db`]: a decay starts at its first sample within
@@ -49,6 +58,16 @@ pub const DEFAULT_RETRIGGER_DB: f64 = 20.0;
 /// 12σ sample; hits 4 s apart over a −60 dB floor, merged before, are split.
 pub const DEFAULT_RETRIGGER_JUMP_DB: f64 = 10.0;
 
+/// Default of [`Segmentation::floor_min_s`]: 20 s. A decay whose every band is flat over the
+/// second half of 20 s has a T60 beyond 15 · 10 s / `floor_flat_db` = 150 s or is on its floor;
+/// records shorter than this (every impulse response in the tests) end with the input as before.
+pub const DEFAULT_FLOOR_MIN_S: f64 = 20.0;
+
+/// Default of [`Segmentation::floor_flat_db`]: the last quarter of the decay at most 1 dB below
+/// the quarter before. A decay falls 15 t / T60 dB between those quarters at age t; noise
+/// averaged over a quarter of ≥ 20 s fluctuates by a few tenths of a dB.
+pub const DEFAULT_FLOOR_FLAT_DB: f64 = 1.0;
+
 /// Lowest frequency whose rise time (a quarter period) sets the new-hit test's gap, Hz.
 pub(crate) const RETRIGGER_MIN_FREQUENCY_HZ: f64 = 5.0;
 
@@ -61,6 +80,8 @@ impl Default for Segmentation {
             end_drop_db: DEFAULT_END_DROP_DB,
             retrigger_db: DEFAULT_RETRIGGER_DB,
             retrigger_jump_db: DEFAULT_RETRIGGER_JUMP_DB,
+            floor_min_s: DEFAULT_FLOOR_MIN_S,
+            floor_flat_db: DEFAULT_FLOOR_FLAT_DB,
         }
     }
 }
@@ -75,6 +96,21 @@ impl Segmentation {
                     format!("expected > 0, got {s}"),
                 ));
             }
+        }
+        if self.floor_min_s.is_nan() || self.floor_min_s <= 0.0 {
+            return Err(Error::setting(
+                "floor_min_s",
+                format!("expected > 0 s (inf: never), got {}", self.floor_min_s),
+            ));
+        }
+        if !(self.floor_flat_db.is_finite() && self.floor_flat_db >= 0.0) {
+            return Err(Error::setting(
+                "floor_flat_db",
+                format!(
+                    "expected a finite level >= 0 dB, got {}",
+                    self.floor_flat_db
+                ),
+            ));
         }
         if self.retrigger_jump_db.is_nan() || self.retrigger_jump_db <= 0.0 {
             return Err(Error::setting(
