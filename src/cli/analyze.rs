@@ -70,7 +70,14 @@ pub fn exit_code_of(summary: &pipeline::RunSummary) -> i32 {
 /// Runs `analyze`; returns the exit code (0, or 3 when part of the input was damaged).
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
     let opened = open_input(&args.input, &args.input_format.options())?;
-    let run = prepare(&args.pipeline, opened.source)?;
+    let window_tau_s = opened
+        .meta
+        .as_ref()
+        .and_then(|m| m.exponential_window_tau_s);
+    let mut run = prepare(&args.pipeline, opened.source)?;
+    // Responses under an exponential window (FRF input, or declared by the set): its damping is
+    // removed from every estimate.
+    run.config.exponential_window_tau_s = window_tau_s;
     // A results file is written under a temporary name and renamed into place when the run
     // ends, also when it ends on an error (it then holds every complete decay's rows, as the
     // exit code says); a killed run leaves no file under the final name.

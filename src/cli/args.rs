@@ -283,6 +283,14 @@ pub struct InputFormatArgs {
     /// Number of channels (required for raw input; checked for other inputs).
     #[arg(long)]
     pub channels: Option<usize>,
+    /// FRF input: half-cosine taper over this top fraction of 0…fmax before the inverse FFT
+    /// (0 = none).
+    #[arg(long, default_value_t = 0.0, value_name = "FRACTION")]
+    pub frf_taper: f64,
+    /// FRF input: exponential window e^(−t/τ) on the impulse responses, τ in s; its added
+    /// damping 1/(2πfτ) is removed from every D again (flag exponential_window_removed).
+    #[arg(long, value_name = "TAU_S")]
+    pub frf_window_s: Option<f64>,
 }
 
 impl InputFormatArgs {
@@ -292,6 +300,10 @@ impl InputFormatArgs {
             raw: self.raw,
             fs_hz: self.fs_hz,
             channels: self.channels,
+            frf: crate::source::frf::FrfToImpulse {
+                taper_fraction: self.frf_taper,
+                exponential_window_tau_s: self.frf_window_s,
+            },
         }
     }
 }

@@ -102,6 +102,7 @@ impl BenchArgs {
             raw: self.raw,
             fs_hz: self.fs_hz.first().copied(),
             channels: self.channels,
+            ..Default::default()
         };
         let mut opened = open_input(path, &options)?;
         let info = opened.source.info().clone();

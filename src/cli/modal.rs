@@ -149,6 +149,30 @@ fn write_outputs(
         }
     }
     crate::output::write_csv_file(&dir.join("shapes.csv"), rows)?;
+    // The same modes as a universal file (nodes 2411 + one dataset 55 per mode): they open in
+    // the modal software labs use. Positions 0 where the input gave none.
+    let sensors: Vec<crate::source::Sensor> = result
+        .names
+        .iter()
+        .enumerate()
+        .map(|(c, id)| crate::source::Sensor {
+            id: id.clone(),
+            x_m: positions.map_or(0.0, |p| p[c].0),
+            y_m: positions.map_or(0.0, |p| p[c].1),
+            z_m: None,
+            dir: "z".into(),
+        })
+        .collect();
+    let shapes: Vec<crate::output::uff::ModeShapeRecord> = result
+        .modes
+        .iter()
+        .map(|m| crate::output::uff::ModeShapeRecord {
+            frequency_hz: m.frequency_hz,
+            damping_ratio: m.damping_ratio,
+            shape: m.shape.clone(),
+        })
+        .collect();
+    crate::output::uff::write_mode_shapes_uff(&dir.join("modes.uff"), &shapes, &sensors)?;
     crate::plot::stabilisation_diagram(
         result,
         &rec.mean_power_spectrum_db(),

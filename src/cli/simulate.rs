@@ -79,6 +79,20 @@ pub struct SimulateArgs {
     /// Print phase times on stderr.
     #[arg(long)]
     pub timings: bool,
+    /// What the recording set holds: `wav` (impulse responses, responses.wav) or `uff`
+    /// (accelerance FRFs as UFF dataset 58 with the sensor nodes as dataset 2411,
+    /// responses.uff, for modal-analysis software).
+    #[arg(long, value_enum, default_value_t = SetFormat::Wav, requires = "out")]
+    pub format: SetFormat,
+}
+
+/// What `simulate --out` writes the responses as.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SetFormat {
+    /// Impulse responses, 32-bit float WAV.
+    Wav,
+    /// FRFs, universal file dataset 58.
+    Uff,
 }
 
 impl SimulateArgs {
@@ -100,6 +114,38 @@ impl SimulateArgs {
             ..SimulateOptions::default()
         }
     }
+}
+
+/// The FRFs whose inverse FFT the impulse responses are (report eq. 3.1 backwards:
+/// H = FFT(h)/(2 fmax) on 0, df, …, fmax), with noise if the responses carry it. The responses
+/// are read whole (checked against the memory budget first).
+fn frfs_of(
+    source: &mut dyn Source,
+    fs: f64,
+) -> anyhow::Result<(f64, Vec<Vec<rustfft::num_complex::Complex<f64>>>)> {
+    let frames = source.duration_frames().unwrap_or(0) as f64;
+    let channels = source.info().channels() as f64;
+    crate::budget::check(
+        "the FRFs of the simulated set",
+        channels * frames * 8.0 * 3.0,
+    )?;
+    let h = crate::source::memory::read_all(source, usize::MAX)?;
+    let n = h.first().map_or(0, Vec::len);
+    if n < 2 {
+        bail!("too few samples ({n}) for FRFs");
+    }
+    let fft = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(n);
+    let scale = 1.0 / fs;
+    let frfs = h
+        .into_iter()
+        .map(|mut x| {
+            let mut spectrum = fft.make_output_vec();
+            let _ = fft.process(&mut x, &mut spectrum);
+            spectrum.iter_mut().for_each(|c| *c *= scale);
+            spectrum
+        })
+        .collect();
+    Ok((fs / n as f64, frfs))
 }
 
 fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
@@ -180,6 +226,23 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
         }
         _ => Box::new(r.source),
     };
+    if args.format == SetFormat::Uff {
+        let Some(dir) = &args.out else {
+            bail!("--format uff writes a recording set: give --out DIR");
+        };
+        let (sensors, excitation) = recording_parts(&r.sensors, Some(&r.excitation));
+        let (df_hz, frfs) = frfs_of(source.as_mut(), fs)?;
+        crate::output::write_recording_set_uff(
+            dir,
+            &meta(fs, args.snr_db),
+            &sensors,
+            &excitation,
+            df_hz,
+            &frfs,
+        )
+        .with_context(|| format!("writing the recording set {}", dir.display()))?;
+        return Ok(());
+    }
     if fs.fract() != 0.0 || fs > f64::from(u32::MAX) {
         bail!("a WAV header needs a whole number of Hz: fs = 2·fmax = {fs}");
     }

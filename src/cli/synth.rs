@@ -183,6 +183,7 @@ mod tests {
             raw: Some(RawFormat::F32),
             fs_hz: Some(4000.0),
             channels: Some(1),
+            ..Default::default()
         };
         assert_eq!(read_back(raw, &opts), (4000.0, want32));
         let (_, csv) = bytes(&[&common[..], &["--format", "csv"]].concat());

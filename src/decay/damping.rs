@@ -1,5 +1,7 @@
 //! Conversions between decay time and damping.
 
+use super::estimate::{DecayEstimate, Flag};
+
 /// `D · f · T60` for a single exponentially decaying mode: ln(10⁶)/(4π) = 3·ln(10)/(2π) ≈ 1.0994.
 ///
 /// The report's eq. 2.14 rounds it to 1.1 (a 0.05 % difference); dampscope uses the exact value.
@@ -23,9 +25,72 @@ pub fn corrected_damping_ratio(damping_ratio: f64, f_center_hz: f64, f_dominant_
     damping_ratio * f_center_hz / f_dominant_hz
 }
 
+/// Decay time (any of EDT, T20, T30, T60, all scaled to 60 dB) with an exponential window's
+/// decay rate 1/τ removed: the window e^(−t/τ) adds 1/τ to the amplitude decay rate
+/// σ = 3 ln 10 / T. `None` when nothing is left (the window accounts for all the decay).
+pub fn t60_without_window(t60_s: f64, tau_s: f64) -> Option<f64> {
+    let sigma = 3.0 * std::f64::consts::LN_10 / t60_s - 1.0 / tau_s;
+    (sigma > 0.0 && sigma.is_finite()).then(|| 3.0 * std::f64::consts::LN_10 / sigma)
+}
+
+/// Removes an exponential window's damping from an estimate of a band centred at
+/// `f_center_hz`: every decay time through [`t60_without_window`], both damping ratios again
+/// from the corrected T60, and flag `exponential_window_removed`. When the window accounts for
+/// all the decay the numbers are withheld (`no_decay`).
+pub fn remove_exponential_window(est: &mut DecayEstimate, tau_s: f64, f_center_hz: f64) {
+    if est.t60_s.is_none() && est.edt_s.is_none() {
+        return;
+    }
+    for t in [&mut est.edt_s, &mut est.t20_s, &mut est.t30_s] {
+        *t = t.and_then(|v| t60_without_window(v, tau_s));
+    }
+    est.flags.push(Flag::ExponentialWindowRemoved);
+    let Some(t60) = est.t60_s.map(|v| t60_without_window(v, tau_s)) else {
+        return;
+    };
+    match t60 {
+        Some(t60) => {
+            est.t60_s = Some(t60);
+            est.damping_ratio = Some(damping_ratio(t60, f_center_hz));
+            est.damping_ratio_corrected = est
+                .f_dominant_hz
+                .filter(|f| *f > 0.0)
+                .map(|f| damping_ratio(t60, f));
+        }
+        None => est.withhold(Flag::NoDecay),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_window_adds_a_known_damping_that_is_removed_again() {
+        // D = 2 % at 50 Hz under a window of τ = 0.5 s: measured D = 2 % + 1/(2π·50·0.5).
+        let (d, f, tau) = (0.02, 50.0, 0.5);
+        let d_win = d + 1.0 / (2.0 * std::f64::consts::PI * f * tau);
+        let mut est = DecayEstimate {
+            t60_s: Some(t60_from_damping(d_win, f)),
+            t30_s: Some(t60_from_damping(d_win, f)),
+            damping_ratio: Some(d_win),
+            f_dominant_hz: Some(f),
+            ..Default::default()
+        };
+        remove_exponential_window(&mut est, tau, f);
+        assert!((est.damping_ratio.unwrap() / d - 1.0).abs() < 1e-12);
+        assert!((est.damping_ratio_corrected.unwrap() / d - 1.0).abs() < 1e-12);
+        assert!((est.t30_s.unwrap() / t60_from_damping(d, f) - 1.0).abs() < 1e-12);
+        assert!(est.has(Flag::ExponentialWindowRemoved));
+        // A window faster than the decay leaves nothing: withheld, not negative.
+        let mut est = DecayEstimate {
+            t60_s: Some(2.0),
+            damping_ratio: Some(0.01),
+            ..Default::default()
+        };
+        remove_exponential_window(&mut est, 0.1, f);
+        assert!(est.damping_ratio.is_none() && est.has(Flag::NoDecay));
+    }
 
     #[test]
     fn energy_of_a_mode_falls_60_db_in_t60() {

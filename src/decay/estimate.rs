@@ -62,6 +62,12 @@ pub enum Flag {
     /// The decay outlasted the buffering front end's limit (`max_decay_s`): only its first
     /// part was analysed.
     DecayTooLong,
+    /// The responses carried an exponential window (FRF input, impact tests): its added
+    /// damping 1/(2πfτ) was removed from the decay times and damping ratios.
+    ExponentialWindowRemoved,
+    /// The hit was clipped (its peak held flat: the sensor or converter saturated). The decay
+    /// after it stands; its level and anything read from the first samples do not.
+    ClippedHit,
     /// The analysis of this channel stopped on an internal error (a bug, reported on stderr);
     /// the other channels were analysed.
     InternalError,
@@ -77,6 +83,8 @@ impl Flag {
                 | Flag::TruncationBias
                 | Flag::NoiseCompensated
                 | Flag::DecayTooLong
+                | Flag::ExponentialWindowRemoved
+                | Flag::ClippedHit
         )
     }
 
@@ -99,6 +107,8 @@ impl Flag {
             Flag::PoorFit => "poor_fit",
             Flag::MergedHits => "merged_hits",
             Flag::DecayTooLong => "decay_too_long",
+            Flag::ExponentialWindowRemoved => "exponential_window_removed",
+            Flag::ClippedHit => "clipped_hit",
             Flag::InternalError => "internal_error",
         }
     }

@@ -7,9 +7,12 @@
 pub mod atomic;
 pub mod raw;
 pub mod recording_set;
+pub mod uff;
 pub mod wav;
 
-pub use recording_set::{write_recording_set, write_recording_set_streamed};
+pub use recording_set::{
+    write_recording_set, write_recording_set_streamed, write_recording_set_uff,
+};
 pub use wav::{write_wav_f32, WavStreamWriter};
 
 use std::io::Write;

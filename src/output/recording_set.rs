@@ -98,6 +98,29 @@ pub fn write_recording_set_streamed(
     written.map_err(|e| failure.unwrap_or(e))
 }
 
+/// [`write_recording_set`] with FRFs in place of time responses: `responses.uff` (dataset 2411
+/// nodes and one dataset 58 accelerance per sensor on the grid 0, df, …, fmax), read back by the
+/// recording-set reader through the inverse FFT (the FRFs are exactly those whose inverse FFT
+/// the impulse responses are).
+pub fn write_recording_set_uff(
+    dir: &Path,
+    meta: &RecordingMeta,
+    sensors: &[Sensor],
+    excitation: &[Excitation],
+    df_hz: f64,
+    frfs: &[Vec<rustfft::num_complex::Complex<f64>>],
+) -> Result<(), SourceError> {
+    let fmax = df_hz * frfs.first().map_or(0, |h| h.len().saturating_sub(1)) as f64;
+    write_set(
+        dir,
+        (meta, sensors, excitation),
+        2.0 * fmax,
+        frfs.len(),
+        "responses.uff",
+        &mut |w| super::uff::write_frf_datasets(w, df_hz, frfs, sensors, excitation.first()),
+    )
+}
+
 /// Where streamed responses go: a float WAV, or (more channels than a WAV holds) a CSV with a
 /// time column and the samples as f32 (the WAV's precision).
 enum ResponseSink<'a> {
@@ -228,7 +251,13 @@ fn write_set(
     })?;
     // Old responses of either kind go first (a stale file of the other kind would also be read
     // instead: the WAV wins).
-    for stale in ["responses.wav", "responses.csv"] {
+    for stale in [
+        "responses.wav",
+        "responses.csv",
+        "responses.uff",
+        "responses.unv",
+        "frf.csv",
+    ] {
         let path = dir.join(stale);
         if path.exists() {
             std::fs::remove_file(&path).map_err(|e| io_err(&path, e))?;

@@ -23,6 +23,8 @@ pub struct ChannelAnalyzer {
     detector: OnsetDetector,
     watch: RetriggerWatch,
     retriggered: bool,
+    /// The open decay's hit was clipped (its peak held flat over several samples).
+    clipped: bool,
     state: State,
     decays: usize,
     last_peak: f64,
@@ -59,6 +61,31 @@ fn timed<T>(slot: Option<&mut f64>, f: impl FnOnce() -> T) -> T {
 fn onset_sizes(lookahead_s: f64, sample_rate_hz: f64) -> (usize, usize) {
     let lookahead = (lookahead_s * sample_rate_hz).round().max(1.0) as usize;
     (lookahead, lookahead.saturating_mul(20).max(1 << 16))
+}
+
+/// Consecutive samples at exactly the peak magnitude that mark a clipped hit. A smooth peak
+/// cannot repeat its value three times: even at 480 samples per period, neighbouring samples
+/// near a peak differ by ~1e-4 of it, a thousand times a 32-bit float's resolution.
+const CLIPPED_RUN_SAMPLES: usize = 3;
+
+/// Whether `samples` (a hit from its onset) hold its `peak` magnitude over a run of at least
+/// [`CLIPPED_RUN_SAMPLES`] samples: the sensor or converter saturated.
+fn is_clipped(samples: &[f64], peak: f64) -> bool {
+    if peak.is_nan() || peak <= 0.0 {
+        return false;
+    }
+    let mut run = 0;
+    for &x in samples {
+        if x.abs() == peak {
+            run += 1;
+            if run >= CLIPPED_RUN_SAMPLES {
+                return true;
+            }
+        } else {
+            run = 0;
+        }
+    }
+    false
 }
 
 /// Samples fed to the front end between end-of-decay checks.
@@ -126,6 +153,7 @@ impl ChannelAnalyzer {
             detector: OnsetDetector::new(onset, 0.0),
             watch: RetriggerWatch::new(lookahead, gap, config.segmentation.retrigger_jump_db),
             retriggered: false,
+            clipped: false,
             state: State::Searching,
             decays: 0,
             last_peak: 0.0,
@@ -247,7 +275,15 @@ impl ChannelAnalyzer {
             judge_bands(front_end, estimators, &mut estimates);
             estimates
         });
+        if let Some(tau) = self.config.exponential_window_tau_s {
+            for (est, band) in estimates.iter_mut().zip(self.front_end.bands()) {
+                crate::decay::damping::remove_exponential_window(est, tau, band.center_hz);
+            }
+        }
         for est in &mut estimates {
+            if self.clipped {
+                est.flags.push(Flag::ClippedHit);
+            }
             if truncated {
                 est.flags.push(Flag::InputTruncated);
             }
@@ -269,6 +305,7 @@ impl ChannelAnalyzer {
         self.trackers.reset();
         self.last_peak = peak;
         self.retriggered = false;
+        self.clipped = is_clipped(first, peak);
         self.watch.restart(
             peak * 10f64.powf(-self.config.segmentation.retrigger_db / 20.0),
             first.len(),
@@ -434,5 +471,23 @@ impl ChannelAnalyzer {
             None,
             vec![DecayEstimate::failed(flag); n],
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::is_clipped;
+
+    #[test]
+    fn a_flat_topped_peak_is_clipped_and_a_sampled_sine_is_not() {
+        // A sine at 480 samples per period: its peak is smooth.
+        let sine: Vec<f64> = (0..2000)
+            .map(|i| (std::f64::consts::TAU * i as f64 / 480.0).sin() as f32 as f64)
+            .collect();
+        let peak = sine.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        assert!(!is_clipped(&sine, peak));
+        // The same sine saturating at 0.8.
+        let clipped: Vec<f64> = sine.iter().map(|x| x.clamp(-0.8, 0.8)).collect();
+        assert!(is_clipped(&clipped, 0.8));
     }
 }

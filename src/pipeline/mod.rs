@@ -44,6 +44,10 @@ pub struct AnalysisConfig {
     pub segmentation: Segmentation,
     /// Sample frames per block read from the source.
     pub block_frames: usize,
+    /// τ of an exponential window the responses carry (applied to FRF input, or declared by
+    /// the recording set), s: its damping is removed from every estimate
+    /// ([`crate::decay::damping::remove_exponential_window`]). `None`: no window.
+    pub exponential_window_tau_s: Option<f64>,
 }
 
 /// Default of [`AnalysisConfig::block_frames`].
@@ -55,6 +59,7 @@ impl Default for AnalysisConfig {
             estimate: EstimateSettings::default(),
             segmentation: Segmentation::default(),
             block_frames: DEFAULT_BLOCK_FRAMES,
+            exponential_window_tau_s: None,
         }
     }
 }
@@ -63,6 +68,14 @@ impl AnalysisConfig {
     /// Checks every setting; an error names the field.
     pub fn validate(&self) -> Result<()> {
         self.estimate.validate()?;
+        if let Some(t) = self.exponential_window_tau_s {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(crate::error::Error::setting(
+                    "exponential_window_tau_s",
+                    format!("expected a finite τ > 0 s, got {t}"),
+                ));
+            }
+        }
         self.segmentation.validate()
     }
 }

@@ -132,8 +132,9 @@ pub trait Source: Send {
 // without a single frame is `Empty`, and a call may return fewer frames than asked (what has
 // arrived on a pipe).
 pub mod csv;
-pub mod frf;
 mod frames;
+pub mod frf;
+pub mod frf_input;
 pub mod memory;
 pub mod noise;
 pub mod open;

@@ -1,5 +1,7 @@
-//! Opening an input by name: `-` (standard input, format detected), a `.wav` or `.csv` file, a
-//! recording-set directory, or any other file (detected like standard input).
+//! Opening an input by name: `-` (standard input, format detected), a `.wav` or `.csv` file, an
+//! FRF file (a universal file `.uff`/`.unv`, or a CSV whose header is `f, <id>_re, <id>_im, …`:
+//! [`super::frf_input`]), a recording-set directory, or any other file (detected like standard
+//! input).
 //!
 //! Detection looks at the first bytes without losing them: they are read into a small buffer
 //! and chained in front of the rest of the stream. `RIFF` → WAV; text → CSV; anything else →
@@ -11,8 +13,10 @@ use std::path::Path;
 
 use super::csv::CsvSource;
 use super::frames::read_up_to;
+use super::frf::FrfToImpulse;
+use super::frf_input::{is_frf_csv, is_uff_path, open_frf_file};
 use super::raw::{RawFormat, RawSource};
-use super::recording_set::{open_recording_set, RecordingMeta, Sensor};
+use super::recording_set::{open_recording_set_with, RecordingMeta, Sensor};
 use super::wav::WavSource;
 use super::{Source, SourceError};
 
@@ -30,6 +34,8 @@ pub struct InputOptions {
     pub fs_hz: Option<f64>,
     /// Channel count: required for raw input; otherwise checked against the input.
     pub channels: Option<usize>,
+    /// How FRF inputs (universal files, FRF CSV) become impulse responses: taper and window.
+    pub frf: FrfToImpulse,
 }
 
 /// An opened input: the samples, plus sensors and metadata when it was a recording set.
@@ -189,7 +195,7 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
     }
     let p = Path::new(path);
     if p.is_dir() {
-        let set = open_recording_set(p)?;
+        let set = open_recording_set_with(p, &opts.frf)?;
         check_channels(path, set.source.as_ref(), opts)?;
         check_header_rate(path, set.source.as_ref(), opts)?;
         return Ok(OpenedInput {
@@ -202,6 +208,19 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
         what: path.to_string(),
         source: e,
     })?;
+    if opts.raw.is_none() && (is_uff_path(p) || is_frf_csv(p)) {
+        let frf = open_frf_file(p, &opts.frf)?;
+        for note in &frf.notes {
+            eprintln!("dampscope: note: {path}: {note}");
+        }
+        check_channels(path, frf.source.as_ref(), opts)?;
+        check_header_rate(path, frf.source.as_ref(), opts)?;
+        return Ok(OpenedInput {
+            source: frf.source,
+            sensors: frf.sensors,
+            meta: Some(frf.meta),
+        });
+    }
     let ext = p
         .extension()
         .and_then(|e| e.to_str())

@@ -14,6 +14,9 @@ use super::csv::CsvSource;
 use super::wav::WavSource;
 use super::{Source, SourceError};
 
+/// FRF files a recording set may hold instead of time responses, looked for in this order.
+pub const FRF_RESPONSE_FILES: [&str; 3] = ["responses.uff", "responses.unv", "frf.csv"];
+
 /// Whether the responses are impulse responses or free decays.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -240,6 +243,15 @@ pub fn read_excitation(path: &Path) -> Result<Vec<Excitation>, SourceError> {
 /// `excitation.csv` are optional. Errors: `ChannelCount` when the responses do not have one
 /// channel per `sensors.csv` row, `Setting` when neither response file exists.
 pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
+    open_recording_set_with(dir, &Default::default())
+}
+
+/// [`open_recording_set`], with `frf` saying how FRF responses (`responses.uff`, `frf.csv`)
+/// become impulse responses (taper, exponential window).
+pub fn open_recording_set_with(
+    dir: &Path,
+    frf: &super::frf::FrfToImpulse,
+) -> Result<RecordingSet, SourceError> {
     let meta_path = dir.join("meta.json");
     let meta = if meta_path.exists() {
         let f = File::open(&meta_path).map_err(|e| io_err(&meta_path, e))?;
@@ -284,10 +296,36 @@ pub fn open_recording_set(dir: &Path) -> Result<RecordingSet, SourceError> {
         let s = CsvSource::new(BufReader::new(f), what.clone(), meta.fs)?;
         check_column_order(&what, &s.info().channel_names, &ids)?;
         (what, s.info().channels(), Box::new(s))
+    } else if let Some(path) = FRF_RESPONSE_FILES
+        .iter()
+        .map(|name| dir.join(name))
+        .find(|p| p.exists())
+    {
+        // FRFs: impulse responses by inverse FFT, columns matched to sensors.csv by id.
+        let what = path.display().to_string();
+        let frf = super::frf_input::open_frf_file(&path, frf)?;
+        let frf = super::frf_input::reorder_to_sensors(&what, frf, &ids)?;
+        let meta = RecordingMeta {
+            fs: frf.meta.fs,
+            exponential_window_tau_s: frf
+                .meta
+                .exponential_window_tau_s
+                .or(meta.exponential_window_tau_s),
+            ..meta
+        };
+        return Ok(RecordingSet {
+            meta,
+            sensors,
+            excitation,
+            source: frf.source,
+        });
     } else {
         return Err(SourceError::Setting {
             what: dir.display().to_string(),
-            detail: "recording set: expected responses.wav or responses.csv, found neither".into(),
+            detail: format!(
+                "recording set: expected responses.wav, responses.csv or FRFs ({}), found none",
+                FRF_RESPONSE_FILES.join(", ")
+            ),
         });
     };
     if got != ids.len() {

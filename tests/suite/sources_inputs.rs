@@ -219,6 +219,7 @@ fn stream_detection() {
         raw: Some(RawFormat::F64),
         fs_hz: Some(100.0),
         channels: Some(1),
+        ..Default::default()
     };
     let bytes: Vec<u8> = [1.0f64, -2.0]
         .iter()

@@ -111,6 +111,12 @@ impl TestCommand {
         self
     }
 
+    /// More arguments.
+    pub fn args<S: AsRef<std::ffi::OsStr>>(mut self, a: impl IntoIterator<Item = S>) -> Self {
+        self.cmd.args(a);
+        self
+    }
+
     /// Pipes `bytes` to standard input.
     pub fn stdin(mut self, bytes: &[u8]) -> Self {
         self.stdin = Some(bytes.to_vec());
