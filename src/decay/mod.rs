@@ -8,6 +8,7 @@
 
 pub mod damping;
 pub mod estimate;
+pub mod flags;
 pub mod leakage;
 pub mod lundeby;
 pub mod oracle;

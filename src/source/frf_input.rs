@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use super::frf::{read_frf_csv, read_frf_uff, FrfToImpulse, ImpulseSet};
+use super::frf::{is_frf_csv_header, read_frf_csv, read_frf_uff, FrfToImpulse, ImpulseSet};
 use super::recording_set::{DecayKind, RecordingMeta, Sensor};
 use super::{Source, SourceError};
 use crate::Error;
@@ -25,25 +25,6 @@ pub struct FrfInput {
     pub meta: RecordingMeta,
     /// What was done and assumed (grid, padding, windows, units), one sentence each.
     pub notes: Vec<String>,
-}
-
-/// Whether a CSV header line names FRF columns: first `f`/`freq`/`freq_hz`, then columns ending
-/// in `_re`/`_im`, `_db`/`_deg` or `_mag`/`_deg`.
-pub fn is_frf_csv_header(line: &str) -> bool {
-    let mut cells = line.split(',').map(|c| c.trim().to_ascii_lowercase());
-    let Some(first) = cells.next() else {
-        return false;
-    };
-    if !matches!(first.as_str(), "f" | "freq" | "freq_hz" | "frequency_hz") {
-        return false;
-    }
-    let rest: Vec<String> = cells.collect();
-    !rest.is_empty()
-        && rest.iter().all(|c| {
-            ["_re", "_im", "_db", "_deg", "_mag"]
-                .iter()
-                .any(|s| c.ends_with(s))
-        })
 }
 
 /// Whether the file at `path` is an FRF CSV (its first non-comment line is an FRF header).
@@ -132,14 +113,10 @@ fn apply_window(ir: &mut ImpulseSet, tau_s: Option<f64>) {
     let Some(tau) = tau_s.filter(|t| t.is_finite() && *t > 0.0) else {
         return;
     };
-    let dt = 1.0 / ir.sample_rate_hz;
     for ch in &mut ir.channels {
-        for (i, v) in ch.iter_mut().enumerate() {
-            *v *= (-(i as f64) * dt / tau).exp();
-        }
+        super::frf::exponential_window(ch, ir.sample_rate_hz, tau);
     }
-    let rate = ir.window_decay_per_s() + 1.0 / tau;
-    ir.exponential_window_tau_s = Some(1.0 / rate);
+    ir.exponential_window_tau_s = super::frf::combined_tau(ir.exponential_window_tau_s, Some(tau));
     ir.notes.push(format!(
         "exponential window e^(-t/{tau} s) applied to the time responses"
     ));

@@ -134,6 +134,7 @@ pub trait Source: Send {
 pub mod csv;
 mod frames;
 pub mod frf;
+pub mod frf_csv;
 pub mod frf_input;
 pub mod memory;
 pub mod noise;

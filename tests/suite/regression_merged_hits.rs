@@ -3,15 +3,9 @@
 //! T60 ≈ 100 s, D ≈ 0.003 %, r² 0.63–0.75 and no flag. Now a new hit during a decay starts a new
 //! decay, and a fit that bad, whatever its cause, gives no number (`poor_fit`).
 
-use std::sync::Arc;
-
-use crate::common::{decaying_sines, gaussian_noise, rel_err};
+use crate::common::{analyse_stft, decaying_sines, gaussian_noise, rel_err};
 use dampscope::decay::{EvaluationRange, Flag};
-use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
-use dampscope::frontend::{Band, FrontEnd};
-use dampscope::pipeline::{run, AnalysisConfig, FrontEndFactory, ResultRow};
-use dampscope::source::memory::MemorySource;
-use dampscope::source::SignalInfo;
+use dampscope::pipeline::{AnalysisConfig, ResultRow};
 
 const FS: f64 = 4000.0;
 /// (f_hz, D) of the two modes every hit excites: T60 0.92 s and 0.73 s.
@@ -39,25 +33,7 @@ fn hit_stream(times_s: &[f64], seconds: f64, seed: u64) -> Vec<f64> {
 }
 
 fn analyse(x: Vec<f64>, config: &AnalysisConfig) -> Vec<ResultRow> {
-    let info = SignalInfo {
-        sample_rate_hz: FS,
-        channel_names: vec!["a".into()],
-    };
-    let source = MemorySource::new(info, vec![x]).unwrap();
-    let bands = [
-        Band::new(100.0, 140.0).unwrap(),
-        Band::new(280.0, 320.0).unwrap(),
-    ];
-    let factory: FrontEndFactory = Arc::new(move || {
-        Ok(Box::new(StftFrontEnd::new(StftSettings::default(), FS, &bands)?) as Box<dyn FrontEnd>)
-    });
-    let mut rows = Vec::new();
-    run(Box::new(source), &factory, config, |r| {
-        rows.extend_from_slice(r);
-        Ok(())
-    })
-    .unwrap();
-    rows
+    analyse_stft(x, FS, &[(100.0, 140.0), (280.0, 320.0)], config)
 }
 
 fn check_every_hit(rows: &[ResultRow], times_s: &[f64], range: EvaluationRange) {

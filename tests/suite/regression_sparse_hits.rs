@@ -9,13 +9,9 @@ use std::process::{Command, Stdio};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
-use crate::common::{decaying_sines, gaussian_noise, rel_err};
+use crate::common::{analyse_stft, decaying_sines, gaussian_noise, rel_err};
 use dampscope::decay::Flag;
-use dampscope::frontend::stft::{StftFrontEnd, StftSettings};
-use dampscope::frontend::{Band, FrontEnd};
-use dampscope::pipeline::{run, AnalysisConfig, FrontEndFactory, ResultRow, Segmentation};
-use dampscope::source::memory::MemorySource;
-use dampscope::source::SignalInfo;
+use dampscope::pipeline::{AnalysisConfig, ResultRow, Segmentation};
 
 const FS: f64 = 4096.0;
 /// (f_hz, D) of the two modes every hit excites: T60 0.93 s and 1.22 s.
@@ -42,25 +38,7 @@ fn sparse_hits(times_s: &[f64], seconds: f64, noise_db: f64, seed: u64) -> Vec<f
 }
 
 fn analyse(x: Vec<f64>, config: &AnalysisConfig) -> Vec<ResultRow> {
-    let info = SignalInfo {
-        sample_rate_hz: FS,
-        channel_names: vec!["a".into()],
-    };
-    let source = MemorySource::new(info, vec![x]).unwrap();
-    let bands = [
-        Band::new(100.0, 140.0).unwrap(),
-        Band::new(430.0, 470.0).unwrap(),
-    ];
-    let factory: FrontEndFactory = std::sync::Arc::new(move || {
-        Ok(Box::new(StftFrontEnd::new(StftSettings::default(), FS, &bands)?) as Box<dyn FrontEnd>)
-    });
-    let mut rows = Vec::new();
-    run(Box::new(source), &factory, config, |r| {
-        rows.extend_from_slice(r);
-        Ok(())
-    })
-    .unwrap();
-    rows
+    analyse_stft(x, FS, &[(100.0, 140.0), (430.0, 470.0)], config)
 }
 
 #[test]

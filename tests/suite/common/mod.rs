@@ -243,3 +243,33 @@ pub fn assert_viscoelastic_layer(
     );
     f
 }
+
+/// Runs one channel `x` at `fs` through the whole streaming pipeline with a default STFT over
+/// `bands` (lo, hi in Hz) and `config`; the rows in the order they came.
+pub fn analyse_stft(
+    x: Vec<f64>,
+    fs: f64,
+    bands: &[(f64, f64)],
+    config: &dampscope::pipeline::AnalysisConfig,
+) -> Vec<dampscope::pipeline::ResultRow> {
+    use dampscope::frontend::FrontEnd;
+    let info = dampscope::source::SignalInfo {
+        sample_rate_hz: fs,
+        channel_names: vec!["a".into()],
+    };
+    let source = dampscope::source::memory::MemorySource::new(info, vec![x]).unwrap();
+    let bands: Vec<Band> = bands
+        .iter()
+        .map(|&(lo, hi)| Band::new(lo, hi).unwrap())
+        .collect();
+    let factory: dampscope::pipeline::FrontEndFactory = std::sync::Arc::new(move || {
+        Ok(Box::new(StftFrontEnd::new(StftSettings::default(), fs, &bands)?) as Box<dyn FrontEnd>)
+    });
+    let mut rows = Vec::new();
+    dampscope::pipeline::run(Box::new(source), &factory, config, |r| {
+        rows.extend_from_slice(r);
+        Ok(())
+    })
+    .unwrap();
+    rows
+}
