@@ -32,8 +32,15 @@ pub struct AnalyzeArgs {
 }
 
 /// Prepares the plan of `args` on `source`; prints its warnings to stderr.
-pub fn prepare(args: &PipelineArgs, source: Box<dyn Source>) -> anyhow::Result<PreparedRun> {
-    let run = args.plan().prepare(source)?;
+/// `window_tau_s`: an exponential window the responses carry (FRF input, or declared by the
+/// recording set); its damping is removed from every estimate.
+pub fn prepare(
+    args: &PipelineArgs,
+    source: Box<dyn Source>,
+    window_tau_s: Option<f64>,
+) -> anyhow::Result<PreparedRun> {
+    let mut run = args.plan().prepare(source)?;
+    run.config.exponential_window_tau_s = window_tau_s;
     for w in &run.warnings {
         eprintln!("dampscope: warning: {w}");
     }
@@ -74,10 +81,7 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
         .meta
         .as_ref()
         .and_then(|m| m.exponential_window_tau_s);
-    let mut run = prepare(&args.pipeline, opened.source)?;
-    // Responses under an exponential window (FRF input, or declared by the set): its damping is
-    // removed from every estimate.
-    run.config.exponential_window_tau_s = window_tau_s;
+    let run = prepare(&args.pipeline, opened.source, window_tau_s)?;
     // A results file is written under a temporary name and renamed into place when the run
     // ends, also when it ends on an error (it then holds every complete decay's rows, as the
     // exit code says); a killed run leaves no file under the final name.

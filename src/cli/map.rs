@@ -116,10 +116,7 @@ pub fn run(args: &MapArgs) -> anyhow::Result<i32> {
         .meta
         .as_ref()
         .and_then(|m| m.exponential_window_tau_s);
-    let mut run = prepare(&args.pipeline, opened.source)?;
-    // Responses under an exponential window (FRF input, or declared by the set): its damping is
-    // removed from every estimate.
-    run.config.exponential_window_tau_s = window_tau_s;
+    let run = prepare(&args.pipeline, opened.source, window_tau_s)?;
     let results = args.out.join("results.csv");
     let mut file = AtomicFile::create(&results)?;
     let mut writer = TableWriter::new(&mut file, TableFormat::Csv);
