@@ -1,6 +1,7 @@
 //! The finite-element plate simulator (8-node hexahedra), one more source of decays.
 
 pub mod assembly;
+pub mod basis;
 pub mod eigen;
 pub mod element;
 pub mod error;
@@ -14,7 +15,9 @@ pub mod poles;
 pub mod reduced;
 pub mod reduced_poles;
 pub mod simulate;
+pub mod state_space;
 pub mod stream;
+pub mod substructure;
 pub mod system;
 pub mod truncation;
 pub mod validate;

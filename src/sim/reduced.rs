@@ -18,8 +18,9 @@
 //!
 //! When no region is viscoelastic and there is no Rayleigh damping, the reduced dynamic stiffness
 //! is K̂_c − ω² M̂ with a constant complex K̂_c: it is diagonalised once (complex eigenvectors)
-//! and every frequency costs O(m) per sensor. Otherwise a dense LU per frequency is used
-//! (frequencies split over two threads).
+//! and every frequency costs O(m) per sensor. Otherwise (SLS regions, Rayleigh damping) the
+//! state-space form linear in s is diagonalised once ([`super::state_space`]), with a dense LU
+//! per frequency (frequencies split over two threads) as the fallback and the oracle.
 
 use faer::c64;
 use faer::linalg::solvers::Solve;
@@ -28,6 +29,7 @@ use faer::sparse::linalg::solvers::Llt;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatRef, Par, Side};
 
+pub(crate) use super::basis::{m_orthonormalise, m_orthonormalise_columns};
 use super::factored::FactoredFrf;
 use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
 use super::system::FeSystem;
@@ -35,11 +37,17 @@ use super::system::FeSystem;
 /// How the reduced system is solved per frequency.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ReducedSolve {
-    /// Diagonalise when possible (no SLS region, no Rayleigh damping), else LU per frequency.
+    /// Diagonalise when possible (no SLS region, no Rayleigh damping); else the state-space
+    /// eigen-solve ([`super::state_space`]) when it costs less than an LU per frequency and
+    /// reproduces it at check frequencies; else LU per frequency.
     #[default]
     Auto,
-    /// Always a dense complex LU per frequency (the general path).
+    /// Always a dense complex LU per frequency (the general path, and the oracle of the
+    /// others).
     PerFrequencyLu,
+    /// Always the state-space eigen-solve; an error if it does not reproduce the LU at the
+    /// check frequencies (for tests and benches of that path).
+    StateSpace,
 }
 
 /// Which residual vectors enrich the modal basis.
@@ -126,80 +134,15 @@ pub(crate) fn k0(sys: &FeSystem) -> Result<SparseColMat<usize, f64>, FrfError> {
 }
 
 /// Sparse × dense product, real.
-fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+pub(super) fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
     sparse_dense_matmul(out.as_mut(), Accum::Replace, a.as_ref(), b, 1.0, Par::Seq);
     out
 }
 
-/// M-orthonormalises the columns of `cand` against `basis` (already M-orthonormal, with
-/// `m_basis` = M × basis) and among themselves; drops columns that are numerically dependent.
-///
-/// Block form, all GEMMs: twice { C ← C − basis (m_basisᵀ C); SVQB: G = Cᵀ M C = U Λ Uᵀ,
-/// C ← C U Λ^{−1/2} over the eigenvalues above 1e-14 }, the columns scaled to unit M-norm
-/// first so that the threshold is relative to each candidate's size: "twice is enough".
-pub(crate) fn m_orthonormalise(
-    mass: &SparseColMat<usize, f64>,
-    basis: MatRef<'_, f64>,
-    m_basis: MatRef<'_, f64>,
-    cand: Vec<Vec<f64>>,
-) -> Result<Vec<Vec<f64>>, FrfError> {
-    let n = basis.nrows();
-    if cand.is_empty() {
-        return Ok(Vec::new());
-    }
-    // scale each candidate to unit M-norm first so that the dependence threshold is relative
-    let mut c = Mat::from_fn(n, cand.len(), |i, j| cand[j][i]);
-    for pass in 0..2 {
-        let mc = spmm(mass, c.as_ref());
-        for j in 0..c.ncols() {
-            if pass > 0 {
-                break;
-            }
-            let nrm = (0..n)
-                .map(|i| c[(i, j)] * mc[(i, j)])
-                .sum::<f64>()
-                .max(0.0)
-                .sqrt();
-            let inv = if nrm > 0.0 && nrm.is_finite() {
-                1.0 / nrm
-            } else {
-                0.0
-            };
-            for i in 0..n {
-                c[(i, j)] *= inv;
-            }
-        }
-        let p = m_basis.transpose() * &c;
-        c -= basis * &p;
-        let mc = spmm(mass, c.as_ref());
-        let g = c.transpose() * &mc;
-        let evd = g
-            .self_adjoint_eigen(Side::Lower)
-            .map_err(|e| FrfError::Factorisation {
-                what: "Gram matrix of the residual vectors".into(),
-                message: format!("{e:?}"),
-            })?;
-        let lam: Vec<f64> = evd.S().column_vector().iter().copied().collect();
-        // columns had unit M-norm before the projection: an absolute threshold is relative
-        let keep: Vec<usize> = (0..lam.len()).filter(|&k| lam[k] > 1e-14).collect();
-        let u = evd.U();
-        let w = Mat::from_fn(c.ncols(), keep.len(), |i, k| {
-            u[(i, keep[k])] / lam[keep[k]].sqrt()
-        });
-        c = &c * &w;
-        if c.ncols() == 0 {
-            break;
-        }
-    }
-    Ok((0..c.ncols())
-        .map(|j| c.col(j).iter().copied().collect())
-        .collect())
-}
-
 /// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted
 /// K₀ + σM with σ = (2π · 1 Hz)² is used instead: the vectors are still good Ritz vectors.
-fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError> {
+pub(super) fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError> {
     let k = k0(sys)?;
     match k.sp_cholesky(Side::Lower) {
         Ok(l) => Ok(l),
@@ -289,7 +232,7 @@ fn lu_solve_sequential(a: &mut Mat<c64>, b: MatRef<'_, c64>) -> Vec<c64> {
 }
 
 /// Modal responses (frequency × basis vector) and sensor weights (sensor × basis vector).
-type FrfFactors = (Mat<c64>, Mat<c64>);
+pub(super) type FrfFactors = (Mat<c64>, Mat<c64>);
 
 /// The reduced (projected) model: everything the per-frequency solve needs.
 pub struct ReducedModel {
@@ -301,7 +244,7 @@ pub struct ReducedModel {
     pub(super) k_hat: Vec<Mat<f64>>,
     pub(super) factors: Vec<super::system::StiffnessTerm>,
     pub(super) rayleigh: (f64, f64),
-    b: Vec<f64>,
+    pub(super) b: Vec<f64>,
     pub(super) sv: Mat<f64>,
     sensor_ids: Vec<String>,
 }
@@ -355,12 +298,44 @@ impl ReducedModel {
                 extra[j - shapes.ncols()][i]
             }
         });
-        let vt = v.transpose();
-        let m_hat = vt * spmm(&sys.mass, v.as_ref());
+        Self::from_basis(sys, v, shapes.ncols())
+    }
+
+    /// Projects `sys` onto the M-orthonormal basis `v` (n_free × m) whose first `n_modes`
+    /// columns are modes: M̂, every K̂_r, the load and the sensor rows.
+    pub(super) fn from_basis(
+        sys: &FeSystem,
+        v: Mat<f64>,
+        n_modes: usize,
+    ) -> Result<Self, FrfError> {
+        let (n, m) = (sys.n_free, v.ncols());
+        let par = faer::get_global_parallelism();
+        let project = |a: &SparseColMat<usize, f64>| -> Mat<f64> {
+            let mut av = Mat::<f64>::zeros(n, m);
+            sparse_dense_matmul(
+                av.as_mut(),
+                Accum::Replace,
+                a.as_ref(),
+                v.as_ref(),
+                1.0,
+                par,
+            );
+            let mut out = Mat::<f64>::zeros(m, m);
+            faer::linalg::matmul::matmul(
+                out.as_mut(),
+                Accum::Replace,
+                v.transpose(),
+                av.as_ref(),
+                1.0,
+                par,
+            );
+            out
+        };
+        let m_hat = project(&sys.mass);
         let k_hat: Vec<Mat<f64>> = sys
             .stiffness_terms
             .iter()
-            .map(|t| vt * spmm(&t.matrix, v.as_ref()))
+            .map(|t| project(&t.matrix))
             .collect();
         let b: Vec<f64> = (0..m)
             .map(|j| (0..n).map(|i| v[(i, j)] * sys.force[i]).sum())
@@ -374,7 +349,7 @@ impl ReducedModel {
         });
         Ok(Self {
             size: m,
-            n_modes: shapes.ncols(),
+            n_modes,
             m_hat,
             k_hat,
             factors: sys
@@ -387,6 +362,18 @@ impl ReducedModel {
             sv,
             sensor_ids: sys.sensors.iter().map(|s| s.id.clone()).collect(),
         })
+    }
+
+    /// Whether one eigen-solve of the state matrix (size ≤ 3m, ~10 N³ operations) costs less
+    /// than a dense LU (~m³) at each of `n_frequencies`.
+    fn state_space_pays(&self, n_frequencies: usize) -> bool {
+        let m = self.size as f64;
+        let n = if self.factors.iter().any(|t| t.sls.is_some()) {
+            3.0 * m
+        } else {
+            2.0 * m
+        };
+        10.0 * n.powi(3) < n_frequencies as f64 * m.powi(3)
     }
 
     fn frequency_independent(&self) -> bool {
@@ -413,7 +400,7 @@ impl ReducedModel {
     }
 
     /// Reduced coordinates q(ω) for every frequency (m × n_freq), by LU per frequency.
-    fn q_by_lu(&self, freqs_hz: &[f64]) -> Result<Mat<c64>, FrfError> {
+    pub(super) fn q_by_lu(&self, freqs_hz: &[f64]) -> Result<Mat<c64>, FrfError> {
         let b = Mat::<c64>::from_fn(self.size, 1, |i, _| c64::new(self.b[i], 0.0));
         let rows = parallel_rows(freqs_hz, 2, |f| {
             let mut a = self.dynamic_stiffness(2.0 * std::f64::consts::PI * f);
@@ -441,10 +428,24 @@ impl ReducedModel {
         how: ReducedSolve,
     ) -> Result<FactoredFrf, FrfError> {
         validate_frequencies(freqs_hz)?;
-        let diagonalised = if how == ReducedSolve::Auto && self.frequency_independent() {
-            self.frf_diagonalised(freqs_hz)?
-        } else {
-            None
+        let diagonalised = match how {
+            ReducedSolve::Auto if self.frequency_independent() => {
+                self.frf_diagonalised(freqs_hz)?
+            }
+            ReducedSolve::Auto if self.state_space_pays(freqs_hz.len()) => {
+                self.frf_state_space(freqs_hz)?
+            }
+            ReducedSolve::StateSpace => {
+                Some(
+                    self.frf_state_space(freqs_hz)?
+                        .ok_or_else(|| FrfError::Factorisation {
+                            what: "state-space eigen-decomposition".into(),
+                            message: "it does not reproduce the dense LU at the check frequencies"
+                                .into(),
+                        })?,
+                )
+            }
+            _ => None,
         };
         let (modal, weights) = match diagonalised {
             Some(parts) => parts,

@@ -4,8 +4,6 @@
 //! patch from its mirror image on a symmetric plate, where the poles alone cannot.
 
 use faer::c64;
-use faer::linalg::solvers::Solve;
-use faer::Mat;
 
 use super::frf::FrfError;
 use super::reduced::ReducedModel;
@@ -30,56 +28,6 @@ fn is_mode(s: c64) -> bool {
 }
 
 impl ReducedModel {
-    /// The state matrix of s²M̂ + sĈ + K̂(s) = 0 (Ĉ = αM̂ + βK̂₀). Loss factors make K̂_c a
-    /// constant complex matrix. A viscoelastic (SLS) region r adds, besides its relaxed part
-    /// (1 + jg)K̂_r in K̂_c, the term c_r·sτ_r/(1 + sτ_r)·K̂_r with c_r = (1 + jg)e/e_inf: with an
-    /// internal variable z_r = sτ_r/(1 + sτ_r)·q, i.e. ż_r = q̇ − z_r/τ_r, the problem is linear
-    /// in s. State (q, q̇, z_1, …): [[0, I, 0], [−M̂⁻¹K̂_c, −M̂⁻¹Ĉ, −M̂⁻¹c_rK̂_r], [0, I, −I/τ_r]].
-    fn state_matrix(&self) -> Result<Mat<c64>, FrfError> {
-        let m = self.size;
-        let (alpha, beta) = self.rayleigh;
-        let mc = Mat::<c64>::from_fn(m, m, |i, j| c64::new(self.m_hat[(i, j)], 0.0));
-        let mut c = Mat::<c64>::from_fn(m, m, |i, j| c64::new(alpha * self.m_hat[(i, j)], 0.0));
-        for k in &self.k_hat {
-            c += Mat::<c64>::from_fn(m, m, |i, j| c64::new(beta * k[(i, j)], 0.0));
-        }
-        let lu = mc.partial_piv_lu();
-        let (mk, mcv) = (lu.solve(self.constant_stiffness()), lu.solve(c));
-        let mut relax: Vec<(f64, Mat<c64>)> = Vec::new();
-        for (t, k) in self.factors.iter().zip(&self.k_hat) {
-            let Some(sls) = t.sls else { continue };
-            if !(sls.e > 0.0 && sls.eta > 0.0 && t.reference_modulus_pa > 0.0) {
-                return Err(FrfError::Invalid {
-                    what: format!("viscoelastic region {}", t.name),
-                    message: format!(
-                        "expected e > 0, eta > 0 and a positive reference modulus, got e = {}, \
-                         eta = {}, reference {}",
-                        sls.e, sls.eta, t.reference_modulus_pa
-                    ),
-                });
-            }
-            let coef = c64::new(1.0, t.loss_factor) * (sls.e / t.reference_modulus_pa);
-            let ck = Mat::<c64>::from_fn(m, m, |i, j| coef * k[(i, j)]);
-            relax.push((sls.eta / sls.e, lu.solve(ck)));
-        }
-        let blocks = 2 + relax.len();
-        let zero = c64::new(0.0, 0.0);
-        let one = c64::new(1.0, 0.0);
-        Ok(Mat::<c64>::from_fn(blocks * m, blocks * m, |i, j| {
-            let (bi, ii, bj, jj) = (i / m, i % m, j / m, j % m);
-            match (bi, bj) {
-                (0, 1) if ii == jj => one,
-                (0, _) => zero,
-                (1, 0) => -mk[(ii, jj)],
-                (1, 1) => -mcv[(ii, jj)],
-                (1, b) => -relax[b - 2].1[(ii, jj)],
-                (_, 1) if ii == jj => one,
-                (b, b2) if b == b2 && ii == jj => c64::new(-1.0 / relax[b - 2].0, 0.0),
-                _ => zero,
-            }
-        }))
-    }
-
     /// The damped poles of the model (loss factors, Rayleigh damping, SLS regions), the
     /// truth against which identified modes are judged when damping is non-proportional (a
     /// damped patch) or frequency-dependent (Rayleigh): the eigenvalues s of the state-space
@@ -89,7 +37,8 @@ impl ReducedModel {
     /// only those below the modes' range.
     pub fn damped_poles(&self) -> Result<Vec<(f64, f64)>, FrfError> {
         let s = self
-            .state_matrix()?
+            .state_form()?
+            .matrix
             .eigenvalues()
             .map_err(|e| FrfError::Factorisation {
                 what: "state-space eigenvalues".into(),
@@ -114,7 +63,8 @@ impl ReducedModel {
     /// displacement half of the state eigenvector through the sensor rows of the basis).
     pub fn damped_modes(&self) -> Result<Vec<DampedMode>, FrfError> {
         let evd = self
-            .state_matrix()?
+            .state_form()?
+            .matrix
             .eigen()
             .map_err(|e| FrfError::Factorisation {
                 what: "state-space eigenvectors".into(),
