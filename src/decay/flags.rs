@@ -57,6 +57,11 @@ pub enum Flag {
     /// The hit was clipped (its peak held flat: the sensor or converter saturated). The decay
     /// after it stands; its level and anything read from the first samples do not.
     ClippedHit,
+    /// The decay's first samples hold a second impact, within tens of ms of the first (a
+    /// hammer that bounced: [`crate::pipeline::segment::double_hit`]). The decay after it
+    /// stands (the same modes ring on); its level, its first frames (EDT) and an FRF from the
+    /// hit do not.
+    DoubleHit,
     /// The analysis of this channel stopped on an internal error (a bug, reported on stderr);
     /// the other channels were analysed.
     InternalError,
@@ -74,6 +79,7 @@ impl Flag {
                 | Flag::DecayTooLong
                 | Flag::ExponentialWindowRemoved
                 | Flag::ClippedHit
+                | Flag::DoubleHit
         )
     }
 
@@ -98,6 +104,7 @@ impl Flag {
             Flag::DecayTooLong => "decay_too_long",
             Flag::ExponentialWindowRemoved => "exponential_window_removed",
             Flag::ClippedHit => "clipped_hit",
+            Flag::DoubleHit => "double_hit",
             Flag::InternalError => "internal_error",
         }
     }
