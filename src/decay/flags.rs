@@ -83,6 +83,25 @@ impl Flag {
         )
     }
 
+    /// Why a result with `flags` has no number: the first flag that withholds one (not a
+    /// qualifying flag such as `noise_compensated` that happened to be raised first), else its
+    /// first flag, else `no_estimate`.
+    pub fn missing_reason(flags: &[Flag]) -> &'static str {
+        flags
+            .iter()
+            .find(|f| f.withholds())
+            .or(flags.first())
+            .map_or("no_estimate", Flag::as_str)
+    }
+
+    /// The flag a table names `name` ([`Flag::as_str`]), or `None` for a name it does not know.
+    pub fn parse(name: &str) -> Option<Flag> {
+        use serde::de::IntoDeserializer;
+        let de: serde::de::value::StrDeserializer<'_, serde::de::value::Error> =
+            name.into_deserializer();
+        serde::Deserialize::deserialize(de).ok()
+    }
+
     /// The flag as it appears in tables.
     pub fn as_str(&self) -> &'static str {
         match self {

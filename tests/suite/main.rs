@@ -12,6 +12,7 @@ mod cli_analyze;
 mod cli_bench;
 mod cli_demo;
 mod cli_streaming;
+mod cli_summarize;
 mod cli_uff;
 mod decay_accuracy;
 mod decay_estimator_seam;

@@ -142,8 +142,11 @@ fn a_bounce_is_flagged_at_4096_hz_too() {
     }
 }
 
-/// Damped sines (f_hz, D, amplitude, phase °), 3 s, over noise 60 dB down.
-fn ringing(modes: &[(f64, f64, f64, f64)], fs: f64, seed: u64) -> Vec<f64> {
+/// A mode as `decaying_sines` takes it: (f_hz, D, amplitude, phase °).
+type Mode = (f64, f64, f64, f64);
+
+/// Damped sines, 3 s, over noise 60 dB down.
+fn ringing(modes: &[Mode], fs: f64, seed: u64) -> Vec<f64> {
     let mut x = gaussian_noise((3.0 * fs) as usize, 1e-3, seed);
     for (i, v) in decaying_sines(modes, fs, 3.0).into_iter().enumerate() {
         x[i] += v;
@@ -186,7 +189,7 @@ fn describe(s: Option<SecondImpact>) -> String {
 #[test]
 fn ringing_alone_is_not_a_double_hit() {
     let config = AnalysisConfig::default();
-    let mut cases: Vec<(String, f64, Vec<(f64, f64, f64, f64)>)> = Vec::new();
+    let mut cases: Vec<(String, f64, Vec<Mode>)> = Vec::new();
     for fs in [4096.0, 8192.0] {
         for (f, psi) in [(120.0, 0.0), (452.0, 90.0), (1500.0, 170.0)] {
             cases.push((format!("one mode {f} Hz"), fs, vec![(f, 0.01, 1.0, psi)]));
