@@ -23,8 +23,10 @@ use crate::pipeline::ResultRow;
 use crate::source::SourceError;
 use crate::{Error, Result};
 
-/// The type-7 quantile at `p` (0 ≤ p ≤ 1) of `sorted` (ascending, finite); `None` for no
-/// values or a `p` outside [0, 1] (see the module note for the definition).
+/// The quantile at `p` (0 ≤ p ≤ 1) of `sorted` (ascending, finite), Hyndman and Fan's type 7:
+/// with h = (n − 1)p, x_⌊h⌋ + (h − ⌊h⌋)(x_(⌊h⌋+1) − x_⌊h⌋) — the straight line through the
+/// sorted values placed at k/(n − 1). p = ½ gives the middle value or the mean of the two middle
+/// ones. `None` for no values or a `p` outside [0, 1].
 pub fn quantile(sorted: &[f64], p: f64) -> Option<f64> {
     if sorted.is_empty() || !(0.0..=1.0).contains(&p) {
         return None;
