@@ -4,8 +4,9 @@ use std::io::Write;
 
 use super::args::{InputFormatArgs, PipelineArgs};
 use super::{EXIT_OK, EXIT_PARTIAL};
+use crate::analysis::spread::Spread;
 use crate::output::atomic::AtomicFile;
-use crate::output::{TableFormat, TableWriter};
+use crate::output::{write_csv_file, TableFormat, TableWriter};
 use crate::pipeline;
 use crate::plan::PreparedRun;
 use crate::source::open::open_input;
@@ -29,6 +30,11 @@ pub struct AnalyzeArgs {
     /// Write the table here instead of standard output.
     #[arg(long, value_name = "FILE")]
     pub out: Option<std::path::PathBuf>,
+    /// Also write, per channel and band, the decays combined with their spread (count, missing
+    /// by reason, median/quartiles/min/max of D and T60, flagged share) to this CSV when the
+    /// run ends (as `dampscope summarize` gives from the table).
+    #[arg(long, value_name = "FILE")]
+    pub summary: Option<std::path::PathBuf>,
 }
 
 /// Prepares the plan of `args` on `source`; prints its warnings to stderr.
@@ -94,14 +100,22 @@ pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
         None => Box::new(std::io::stdout().lock()),
     };
     let mut writer = TableWriter::new(out, args.format);
+    let mut spread = args.summary.as_ref().map(|_| Spread::new());
     let ran = writer.write_header().and_then(|_| {
         pipeline::run(run.source, &run.factory, &run.config, |rows| {
+            if let Some(s) = &mut spread {
+                rows.iter().for_each(|r| s.add_row(r));
+            }
             writer.write_rows(rows)
         })
     });
     drop(writer);
     if let Some(f) = file {
         f.commit()?;
+    }
+    // The spread of what was analysed, also after an input error (like the table).
+    if let (Some(path), Some(s)) = (&args.summary, &spread) {
+        write_csv_file(path, s.rows())?;
     }
     let summary = ran?;
     Ok(exit_code_of(&summary))

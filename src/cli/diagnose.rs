@@ -66,6 +66,8 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         fmax_hz: args.fmax,
         excitation_m: set.excitation.first().map(|e| (e.x_m, e.y_m)),
         model_form_sigma: 0.01 * args.model_form_percent,
+        // A window the responses carry (FRFs from an impact test) is not the structure's loss.
+        exponential_window_tau_s: set.meta.exponential_window_tau_s,
         ..DiagnoseSettings::default()
     };
     let bar = indicatif::ProgressBar::new_spinner();

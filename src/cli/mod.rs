@@ -12,6 +12,7 @@ pub mod modal;
 pub mod modes;
 pub mod resynth;
 pub mod simulate;
+pub mod summarize;
 pub mod synth;
 
 use clap::{Parser, Subcommand};
@@ -65,6 +66,8 @@ pub enum Command {
     Simulate(simulate::SimulateArgs),
     /// Write decaying sines (report eq. 4.5) as WAV, raw f32 or CSV (stdout or --out).
     Synth(synth::SynthArgs),
+    /// Combine the decays of an analyze results table per channel and band: count, missing by reason, median/quartiles/min/max of D and T60.
+    Summarize(summarize::SummarizeArgs),
 }
 
 /// Parses the command line, runs the command and returns the process exit code.
@@ -92,6 +95,7 @@ pub fn main_exit_code() -> i32 {
         Command::Resynth(args) => resynth::run(args).map(|_| EXIT_OK),
         Command::Diagnose(args) => diagnose::run(args).map(|_| EXIT_OK),
         Command::Bench(args) => bench::run(args).map(|_| EXIT_OK),
+        Command::Summarize(args) => summarize::run(args).map(|_| EXIT_OK),
     };
     match result {
         Ok(code) => code,

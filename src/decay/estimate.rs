@@ -207,13 +207,7 @@ impl DecayEstimate {
         if self.damping_ratio.is_some() {
             return None;
         }
-        Some(
-            self.flags
-                .iter()
-                .find(|f| f.withholds())
-                .or(self.flags.first())
-                .map_or("no_estimate", Flag::as_str),
-        )
+        Some(Flag::missing_reason(&self.flags))
     }
 
     /// True when the estimate carries a reverberation time (no flag withheld it).

@@ -57,6 +57,11 @@ pub enum Flag {
     /// The hit was clipped (its peak held flat: the sensor or converter saturated). The decay
     /// after it stands; its level and anything read from the first samples do not.
     ClippedHit,
+    /// The decay's first samples hold a second impact, within tens of ms of the first (a
+    /// hammer that bounced: [`crate::pipeline::segment::double_hit`]). The decay after it
+    /// stands (the same modes ring on); its level, its first frames (EDT) and an FRF from the
+    /// hit do not.
+    DoubleHit,
     /// The analysis of this channel stopped on an internal error (a bug, reported on stderr);
     /// the other channels were analysed.
     InternalError,
@@ -74,7 +79,27 @@ impl Flag {
                 | Flag::DecayTooLong
                 | Flag::ExponentialWindowRemoved
                 | Flag::ClippedHit
+                | Flag::DoubleHit
         )
+    }
+
+    /// Why a result with `flags` has no number: the first flag that withholds one (not a
+    /// qualifying flag such as `noise_compensated` that happened to be raised first), else its
+    /// first flag, else `no_estimate`.
+    pub fn missing_reason(flags: &[Flag]) -> &'static str {
+        flags
+            .iter()
+            .find(|f| f.withholds())
+            .or(flags.first())
+            .map_or("no_estimate", Flag::as_str)
+    }
+
+    /// The flag a table names `name` ([`Flag::as_str`]), or `None` for a name it does not know.
+    pub fn parse(name: &str) -> Option<Flag> {
+        use serde::de::IntoDeserializer;
+        let de: serde::de::value::StrDeserializer<'_, serde::de::value::Error> =
+            name.into_deserializer();
+        serde::Deserialize::deserialize(de).ok()
     }
 
     /// The flag as it appears in tables.
@@ -98,6 +123,7 @@ impl Flag {
             Flag::DecayTooLong => "decay_too_long",
             Flag::ExponentialWindowRemoved => "exponential_window_removed",
             Flag::ClippedHit => "clipped_hit",
+            Flag::DoubleHit => "double_hit",
             Flag::InternalError => "internal_error",
         }
     }

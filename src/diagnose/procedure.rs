@@ -51,6 +51,12 @@ pub struct DiagnoseSettings {
     /// How far a correct model's ln f may differ from the structure's, mode by mode, beyond
     /// the calibrated offset and trends (see [`super::score`]).
     pub model_form_sigma: f64,
+    /// τ of an exponential window e^(−t/τ) the recordings carry (impact testing; declared by
+    /// a recording set's meta.json or its FRF file), s: its decay rate is removed from every
+    /// identified pole ([`ModalSettings::exponential_window_tau_s`]), which would otherwise
+    /// read as loss the model lacks. The FRF error still compares the responses as recorded
+    /// (windowed) with the model's. `None`: no window.
+    pub exponential_window_tau_s: Option<f64>,
 }
 
 impl Default for DiagnoseSettings {
@@ -60,6 +66,7 @@ impl Default for DiagnoseSettings {
             fmax_hz: DEFAULT_DIAGNOSE_FMAX_HZ,
             excitation_m: None,
             model_form_sigma: DEFAULT_MODEL_FORM_SIGMA,
+            exponential_window_tau_s: None,
         }
     }
 }
@@ -270,7 +277,11 @@ pub fn diagnose_with_progress(
     progress: &mut dyn FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
     progress("identifying the recordings' modes");
-    let modes = identify(rec, &ModalSettings::new(settings.fmin_hz, settings.fmax_hz))?.modes;
+    let modal = ModalSettings {
+        exponential_window_tau_s: settings.exponential_window_tau_s,
+        ..ModalSettings::new(settings.fmin_hz, settings.fmax_hz)
+    };
+    let modes = identify(rec, &modal)?.modes;
     progress("solving the model");
     let base = ModelView::new(model, MODEL_RANGE_FACTOR * settings.fmax_hz)?;
     let evidence = Evidence::gather(&modes, base.poles_at(sensors)?);

@@ -240,8 +240,8 @@ fn write_set(
         }
         table.flush()
     })?;
+    // As given (a window the responses carry stays declared), with the rate written.
     let meta = RecordingMeta {
-        exponential_window_tau_s: None,
         fs: Some(sample_rate_hz),
         ..meta.clone()
     };

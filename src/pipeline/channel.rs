@@ -1,6 +1,7 @@
 //! One channel's stream: decay onsets, new hits, the front end and the band estimators.
 
 use super::bands::{judge_bands, BandTrackers, FloorEnd};
+use super::segment::double_hit::{is_double_hit, DOUBLE_HIT_HISTORY_SAMPLES};
 use super::segment::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
 use super::segment::RETRIGGER_MIN_FREQUENCY_HZ;
 use super::{AnalysisConfig, ResultRow};
@@ -25,6 +26,8 @@ pub struct ChannelAnalyzer {
     retriggered: bool,
     /// The open decay's hit was clipped (its peak held flat over several samples).
     clipped: bool,
+    /// The open decay's first samples hold a second impact (a hammer's rebound).
+    double_hit: bool,
     state: State,
     decays: usize,
     last_peak: f64,
@@ -117,7 +120,9 @@ impl ChannelAnalyzer {
             level_db: config.segmentation.onset_level_db,
             lookahead_samples: lookahead,
             max_buffer_samples: cap,
-            pre_roll_samples: front_end.pre_roll_samples(),
+            // The front end's own pre-roll, and what the double-hit check wants before the
+            // onset.
+            pre_roll_samples: front_end.pre_roll_samples().max(DOUBLE_HIT_HISTORY_SAMPLES),
         };
         let lowest_hz = front_end
             .bands()
@@ -154,6 +159,7 @@ impl ChannelAnalyzer {
             watch: RetriggerWatch::new(lookahead, gap, config.segmentation.retrigger_jump_db),
             retriggered: false,
             clipped: false,
+            double_hit: false,
             state: State::Searching,
             decays: 0,
             last_peak: 0.0,
@@ -178,8 +184,10 @@ impl ChannelAnalyzer {
     }
 
     /// Bytes one analyzer holds besides its front end, at most: the onset buffer at its cap,
-    /// the new-hit watch, and per band its estimator's state (frame energies grow with the
-    /// decay: 16 bytes per frame and band on top of this).
+    /// the new-hit watch, the double-hit check's working copy of the decay's first
+    /// [`DOUBLE_HIT_WINDOW_S`](super::segment::double_hit::DOUBLE_HIT_WINDOW_S) (25 bytes a
+    /// sample, while a decay starts), and per band its estimator's state (frame energies grow
+    /// with the decay: 16 bytes per frame and band on top of this).
     ///
     /// Per band: its estimator and result row (about `BAND_STATE_BYTES`) and the decay's frame
     /// history, 16 bytes per frame, doubled for vector growth, over `history_frames` frames
@@ -191,7 +199,9 @@ impl ChannelAnalyzer {
         config: &AnalysisConfig,
     ) -> f64 {
         let (lookahead, cap) = onset_sizes(config.segmentation.onset_lookahead_s, sample_rate_hz);
+        let double_hit = 25.0 * super::segment::double_hit::DOUBLE_HIT_WINDOW_S * sample_rate_hz;
         (cap * 8 + lookahead * 24) as f64
+            + double_hit
             + n_bands as f64 * (BAND_STATE_BYTES as f64 + 32.0 * history_frames)
     }
 
@@ -284,6 +294,9 @@ impl ChannelAnalyzer {
             if self.clipped {
                 est.flags.push(Flag::ClippedHit);
             }
+            if self.double_hit {
+                est.flags.push(Flag::DoubleHit);
+            }
             if truncated {
                 est.flags.push(Flag::InputTruncated);
             }
@@ -301,11 +314,14 @@ impl ChannelAnalyzer {
 
     fn start_decay(&mut self, onset_index: u64, pre_roll: &[f64], first: &[f64], peak: f64) {
         self.front_end.reset();
-        self.front_end.begin_decay(pre_roll);
+        let fe_pre_roll = pre_roll.len().min(self.front_end.pre_roll_samples());
+        self.front_end
+            .begin_decay(&pre_roll[pre_roll.len() - fe_pre_roll..]);
         self.trackers.reset();
         self.last_peak = peak;
         self.retriggered = false;
         self.clipped = is_clipped(first, peak);
+        self.double_hit = is_double_hit(pre_roll, first, self.sample_rate_hz);
         self.watch.restart(
             peak * 10f64.powf(-self.config.segmentation.retrigger_db / 20.0),
             first.len(),

@@ -6,6 +6,7 @@
 //! input, or once it has sat on its noise floor long enough to place it (`floor_min_s`). After a
 //! decay, a sample within `retrigger_db` of its peak starts the next one.
 
+pub mod double_hit;
 pub mod onset;
 
 use crate::error::{Error, Result};
