@@ -196,6 +196,10 @@ pub fn meta(fs_hz: f64, snr_db: Option<f64>) -> RecordingMeta {
 pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     let model = load_model(args.model.as_deref())?;
     let opts = args.options();
+    if args.timings {
+        let size = crate::sim::limits::ModelSize::of(&model);
+        eprintln!("estimate before the run: {}", size.describe());
+    }
     let mut r = simulate_stream(&model, &opts).context("simulation")?;
     if args.timings {
         let t = &r.timings;

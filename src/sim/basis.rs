@@ -66,18 +66,9 @@ pub(crate) fn m_orthonormalise_columns(
             let p = m_basis.transpose() * &c;
             c -= basis * &p;
         }
-        let mc = spmm(mass, c.as_ref());
-        let g = c.transpose() * &mc;
-        let evd = g
-            .self_adjoint_eigen(Side::Lower)
-            .map_err(|e| FrfError::Factorisation {
-                what: "Gram matrix of the residual vectors".into(),
-                message: format!("{e:?}"),
-            })?;
-        let lam: Vec<f64> = evd.S().column_vector().iter().copied().collect();
+        let (lam, u) = gram_eigen(mass, &c)?;
         // columns had unit M-norm before the projection: an absolute threshold is relative
         let keep: Vec<usize> = (0..lam.len()).filter(|&k| lam[k] > 1e-14).collect();
-        let u = evd.U();
         let w = Mat::from_fn(c.ncols(), keep.len(), |i, k| {
             u[(i, keep[k])] / lam[keep[k]].sqrt()
         });
@@ -87,4 +78,23 @@ pub(crate) fn m_orthonormalise_columns(
         }
     }
     Ok(c)
+}
+
+/// The eigen-decomposition of the Gram matrix CᵀMC of the columns of `c`: eigenvalues
+/// (ascending) and eigenvectors (columns).
+pub(crate) fn gram_eigen(
+    mass: &SparseColMat<usize, f64>,
+    c: &Mat<f64>,
+) -> Result<(Vec<f64>, Mat<f64>), FrfError> {
+    let g = c.transpose() * spmm(mass, c.as_ref());
+    let evd = g
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| FrfError::Factorisation {
+            what: "Gram matrix of the residual vectors".into(),
+            message: format!("{e:?}"),
+        })?;
+    Ok((
+        evd.S().column_vector().iter().copied().collect(),
+        evd.U().to_owned(),
+    ))
 }

@@ -354,42 +354,30 @@ fn frf_parts(
                 let t = Instant::now();
                 if let Some(cb) = craig_bampton_vectors(sys, fmax_hz, cutoff_hz)? {
                     timings.modes_s = t.elapsed().as_secs_f64();
+                    let f = reduce_and_solve(&freqs, &mut timings, pb, || {
+                        ReducedModel::craig_bampton(sys, &cb)
+                    })?;
                     pb.inc(1);
-                    pb.set_message("reduction");
-                    let t = Instant::now();
-                    let red = ReducedModel::craig_bampton(sys, &cb)?;
-                    timings.reduction_s = t.elapsed().as_secs_f64();
-                    pb.inc(1);
-                    pb.set_message("fast FRF");
-                    let t = Instant::now();
-                    let f = red.factored_frf(&freqs, ReducedSolve::Auto)?;
-                    timings.frf_s = t.elapsed().as_secs_f64();
-                    pb.inc(1);
-                    return Ok((FrfParts::Factored(f), red.n_modes, timings));
+                    let used = cb.boundary_modes.frequencies_hz.len()
+                        + cb.interior_modes.frequencies_hz.len();
+                    return Ok((FrfParts::Factored(f), used, timings));
                 }
             }
             get_modes(ModeRequest::BelowHz(cutoff_hz), &mut timings)?;
             let m = modes
                 .or(owned.as_ref())
                 .ok_or_else(|| SimError::Eigen("no modes".into()))?;
-            pb.inc(1);
-            pb.set_message("reduction");
-            let t = Instant::now();
-            let red = ReducedModel::build(
-                sys,
-                &m.frequencies_hz,
-                m.shapes.as_ref(),
-                BasisOptions {
-                    mode_residuals_below_hz: fmax_hz,
-                    ..BasisOptions::default()
-                },
-            )?;
-            timings.reduction_s = t.elapsed().as_secs_f64();
-            pb.inc(1);
-            pb.set_message("fast FRF");
-            let t = Instant::now();
-            let f = red.factored_frf(&freqs, ReducedSolve::Auto)?;
-            timings.frf_s = t.elapsed().as_secs_f64();
+            let f = reduce_and_solve(&freqs, &mut timings, pb, || {
+                ReducedModel::build(
+                    sys,
+                    &m.frequencies_hz,
+                    m.shapes.as_ref(),
+                    BasisOptions {
+                        mode_residuals_below_hz: fmax_hz,
+                        ..BasisOptions::default()
+                    },
+                )
+            })?;
             (FrfParts::Factored(f), m.frequencies_hz.len())
         }
         Method::Truncated(keep) => {
@@ -419,6 +407,27 @@ fn frf_parts(
     };
     pb.inc(1);
     Ok((parts, modes_used, timings))
+}
+
+/// The reduction `build` (timed as `reduction_s`) and its fast FRF (timed as `frf_s`), with
+/// the progress bar's phases.
+fn reduce_and_solve(
+    freqs: &[f64],
+    timings: &mut Timings,
+    pb: &indicatif::ProgressBar,
+    build: impl FnOnce() -> Result<ReducedModel, FrfError>,
+) -> Result<FactoredFrf, SimError> {
+    pb.inc(1);
+    pb.set_message("reduction");
+    let t = Instant::now();
+    let red = build()?;
+    timings.reduction_s = t.elapsed().as_secs_f64();
+    pb.inc(1);
+    pb.set_message("fast FRF");
+    let t = Instant::now();
+    let f = red.factored_frf(freqs, ReducedSolve::Auto)?;
+    timings.frf_s = t.elapsed().as_secs_f64();
+    Ok(f)
 }
 
 /// Impulse response of every sensor from its accelerance, with optional peak-SNR noise

@@ -28,6 +28,7 @@ use faer::{Mat, MatRef, Side};
 
 use super::eigen::{lowest_modes, ModeRequest, Modes};
 use super::frf::FrfError;
+use super::reduced::spmm;
 use super::system::{FeSystem, StiffnessTerm};
 use super::SimError;
 
@@ -501,33 +502,11 @@ fn compress(
     if c.ncols() == 0 {
         return Ok(c);
     }
-    let g = c.transpose() * spmm(mass, c.as_ref());
-    let evd = g
-        .self_adjoint_eigen(Side::Lower)
-        .map_err(|e| FrfError::Factorisation {
-            what: "Gram matrix of the residual vectors".into(),
-            message: format!("{e:?}"),
-        })?;
-    let lam: Vec<f64> = evd.S().column_vector().iter().copied().collect();
+    let (lam, u) = super::basis::gram_eigen(mass, &c)?;
     let largest = lam.iter().fold(0.0f64, |a, &l| a.max(l));
     let dirs: Vec<usize> = (0..lam.len())
         .filter(|&k| lam[k] > RESIDUAL_COMPRESSION * largest)
         .collect();
-    let u = evd.U();
     let w = Mat::from_fn(c.ncols(), dirs.len(), |i, k| u[(i, dirs[k])]);
     Ok(&c * &w)
-}
-
-/// Sparse × dense product.
-fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    faer::sparse::linalg::matmul::sparse_dense_matmul(
-        out.as_mut(),
-        faer::Accum::Replace,
-        a.as_ref(),
-        b,
-        1.0,
-        faer::get_global_parallelism(),
-    );
-    out
 }
