@@ -5,7 +5,7 @@
 
 use proptest::prelude::*;
 
-use crate::common::{csv_rows, decaying_sines, fresh_dir, gaussian_noise, rel_err, TestCommand};
+use crate::common::{add_at, csv_rows, fresh_dir, gaussian_noise, rel_err, test_hit, TestCommand};
 use dampscope::analysis::spread::{quantile, Spread};
 use dampscope::decay::Flag;
 use dampscope::frontend::Band;
@@ -97,22 +97,11 @@ fn hit_stream() -> Vec<u8> {
     let n = (seconds * FS) as usize;
     let mut x = gaussian_noise(n, 1e-3, 5);
     for k in 0..HITS {
-        let a = [1.0, 0.5, 0.8, 0.3, 0.9][k % 5];
-        let modes: Vec<(f64, f64, f64, f64)> = MODES
-            .iter()
-            .enumerate()
-            .map(|(m, &(f, d))| (f, d, a, 37.0 * (k + m) as f64))
-            .collect();
-        let hit = decaying_sines(&modes, FS, 3.0);
+        let hit = test_hit(&MODES, k, FS, 3.0);
         let start = (3.0 * k as f64 * FS) as usize;
-        for (i, v) in hit.iter().enumerate().take(n - start) {
-            x[start + i] += v;
-        }
+        add_at(&mut x, start, &hit, 1.0);
         if k == BOUNCING {
-            let start = start + (0.010 * FS) as usize;
-            for (i, v) in hit.iter().enumerate().take(n - start) {
-                x[start + i] += 0.4 * v;
-            }
+            add_at(&mut x, start + (0.010 * FS) as usize, &hit, 0.4);
         }
     }
     x.iter().flat_map(|v| (*v as f32).to_le_bytes()).collect()

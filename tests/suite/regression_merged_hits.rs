@@ -3,7 +3,7 @@
 //! T60 ≈ 100 s, D ≈ 0.003 %, r² 0.63–0.75 and no flag. Now a new hit during a decay starts a new
 //! decay, and a fit that bad, whatever its cause, gives no number (`poor_fit`).
 
-use crate::common::{analyse_stft, decaying_sines, gaussian_noise, rel_err};
+use crate::common::{add_at, analyse_stft, gaussian_noise, rel_err, test_hit};
 use dampscope::decay::{EvaluationRange, Flag};
 use dampscope::pipeline::{AnalysisConfig, ResultRow};
 
@@ -17,17 +17,8 @@ fn hit_stream(times_s: &[f64], seconds: f64, seed: u64) -> Vec<f64> {
     let n = (seconds * FS) as usize;
     let mut x = gaussian_noise(n, 1e-3, seed);
     for (k, &t0) in times_s.iter().enumerate() {
-        let a = [1.0, 0.5, 0.8, 0.3, 0.9][k % 5];
-        let modes: Vec<(f64, f64, f64, f64)> = MODES
-            .iter()
-            .enumerate()
-            .map(|(m, &(f, d))| (f, d, a, 37.0 * (k + m) as f64))
-            .collect();
-        let start = (t0 * FS) as usize;
-        let hit = decaying_sines(&modes, FS, seconds - t0);
-        for (i, v) in hit.into_iter().enumerate().take(n - start) {
-            x[start + i] += v;
-        }
+        let hit = test_hit(&MODES, k, FS, seconds - t0);
+        add_at(&mut x, (t0 * FS) as usize, &hit, 1.0);
     }
     x
 }

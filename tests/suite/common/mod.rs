@@ -27,6 +27,26 @@ pub fn decaying_sines(modes: &[(f64, f64, f64, f64)], fs: f64, seconds: f64) -> 
     dampscope::source::synth::decaying_sines(&modes, fs, seconds)
 }
 
+/// Hit `k` of the hit-stream tests: `modes` as (f_hz, D), each at the strength
+/// [1, 0.5, 0.8, 0.3, 0.9][k mod 5] and phase 37°·(k + mode index), `seconds` long.
+pub fn test_hit(modes: &[(f64, f64)], k: usize, fs: f64, seconds: f64) -> Vec<f64> {
+    let a = [1.0, 0.5, 0.8, 0.3, 0.9][k % 5];
+    let modes: Vec<(f64, f64, f64, f64)> = modes
+        .iter()
+        .enumerate()
+        .map(|(m, &(f, d))| (f, d, a, 37.0 * (k + m) as f64))
+        .collect();
+    decaying_sines(&modes, fs, seconds)
+}
+
+/// Adds `gain × hit` into `x` from sample `start` on, cut at the end of `x`.
+pub fn add_at(x: &mut [f64], start: usize, hit: &[f64], gain: f64) {
+    let n = x.len();
+    for (i, v) in hit.iter().enumerate().take(n.saturating_sub(start)) {
+        x[start + i] += gain * v;
+    }
+}
+
 /// Analyses `x` (starting at its onset) with an STFT of `window_ms` in one band.
 pub fn stft_estimate(
     x: &[f64],
