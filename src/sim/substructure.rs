@@ -447,14 +447,19 @@ impl super::reduced::ReducedModel {
             .copy_from(&mphi);
         drop(mphi);
         faer::linalg::solvers::Solve::solve_in_place(&llt, loads.as_mut());
-        let orth = |basis: &Mat<f64>, cand: Mat<f64>| -> Result<Mat<f64>, FrfError> {
-            let mb = spmm(&sys.mass, basis.as_ref());
-            super::reduced::m_orthonormalise_columns(&sys.mass, basis.as_ref(), mb.as_ref(), cand)
+        let orth = |basis: &Mat<f64>, m_basis: &Mat<f64>, cand: Mat<f64>| {
+            super::reduced::m_orthonormalise_columns(
+                &sys.mass,
+                basis.as_ref(),
+                m_basis.as_ref(),
+                cand,
+            )
         };
-        let statics = orth(&modes, statics)?;
+        let statics = orth(&modes, &spmm(&sys.mass, modes.as_ref()), statics)?;
         let modes = concat(&modes, &statics);
-        let compressed = compress(&sys.mass, &modes, loads)?;
-        let extra = orth(&modes, compressed)?;
+        let m_modes = spmm(&sys.mass, modes.as_ref());
+        let compressed = compress(&sys.mass, &modes, &m_modes, loads)?;
+        let extra = orth(&modes, &m_modes, compressed)?;
         Self::from_basis(sys, concat(&modes, &extra), nb + ni)
     }
 }
@@ -470,7 +475,8 @@ fn concat(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
     })
 }
 
-/// The principal directions of the residual vectors `cand` outside the M-orthonormal `basis`:
+/// The principal directions of the residual vectors `cand` outside the M-orthonormal `basis`
+/// (`m_basis` = M × basis):
 /// each projected out of the basis (twice), the parts below 1e-10 of their vector dropped as
 /// dependent, the rest scaled to unit M-norm, and the directions of their Gram matrix with an
 /// eigenvalue below [`RESIDUAL_COMPRESSION`] × the largest left out. Not orthonormal; the
@@ -478,6 +484,7 @@ fn concat(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
 fn compress(
     mass: &SparseColMat<usize, f64>,
     basis: &Mat<f64>,
+    m_basis: &Mat<f64>,
     mut c: Mat<f64>,
 ) -> Result<Mat<f64>, FrfError> {
     let n = c.nrows();
@@ -494,9 +501,8 @@ fn compress(
             .collect()
     };
     let before = m_norms(&c);
-    let mb = spmm(mass, basis.as_ref());
     for _ in 0..2 {
-        let p = mb.transpose() * &c;
+        let p = m_basis.transpose() * &c;
         c -= basis * &p;
     }
     let after = m_norms(&c);
