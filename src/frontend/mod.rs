@@ -12,7 +12,7 @@ pub mod goyder;
 mod hann_gain;
 pub mod iec_bands;
 pub mod octave_bank;
-mod simd;
+pub(crate) mod simd;
 pub mod stft;
 
 pub use bands::Band;

@@ -3,9 +3,11 @@
 use super::bands::{judge_bands, BandTrackers, FloorEnd};
 use super::segment::double_hit::{is_double_hit, DOUBLE_HIT_HISTORY_SAMPLES};
 use super::segment::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
+use super::segment::sample_scan::first_non_finite;
 use super::segment::RETRIGGER_MIN_FREQUENCY_HZ;
 use super::{AnalysisConfig, ResultRow};
 use crate::decay::{DecayEstimate, DecayEstimator, Flag};
+use crate::frontend::simd::Isa;
 use crate::frontend::{Frame, FrontEnd};
 
 enum State {
@@ -36,6 +38,8 @@ pub struct ChannelAnalyzer {
     fragments: usize,
     /// Per-stage clocks, when profiling ([`ChannelAnalyzer::profile_stages`]).
     clock: Option<StageClock>,
+    /// Instruction set of the whole-block input check.
+    isa: Isa,
 }
 
 /// Seconds a profiled analyzer spent in segmentation and in its estimators (the front end's
@@ -168,6 +172,7 @@ impl ChannelAnalyzer {
             fragments: 0,
             config,
             clock: None,
+            isa: Isa::detect(),
         }
     }
 
@@ -371,7 +376,7 @@ impl ChannelAnalyzer {
         if self.failed {
             return;
         }
-        if let Some(bad) = samples.iter().position(|x| !x.is_finite()) {
+        if let Some(bad) = first_non_finite(self.isa, samples) {
             // Decays that ended before the bad sample stand, whatever the block size; the open
             // one is dropped and the channel stops there.
             self.push(&samples[..bad], out);

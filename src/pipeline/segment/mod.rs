@@ -8,6 +8,7 @@
 
 pub mod double_hit;
 pub mod onset;
+pub(crate) mod sample_scan;
 
 use crate::error::{Error, Result};
 

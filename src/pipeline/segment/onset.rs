@@ -222,6 +222,22 @@ pub struct RetriggerWatch {
     queue: std::collections::VecDeque<(u64, f64)>,
     /// `jump` × the window's maximum (fixed within a block).
     threshold: f64,
+    /// Instruction set of the per-piece maximum.
+    isa: crate::frontend::simd::Isa,
+}
+
+/// Pieces shorter than this are scanned inline: at low rates the watch's blocks are a few
+/// samples long (an eighth of a quarter period of the lowest band), too short for the lanes.
+const SHORT_PIECE: usize = 32;
+
+/// `i` modulo `n` for `i < 2n` (a ring index one step past its end), without a division.
+#[inline]
+fn wrap(i: usize, n: usize) -> usize {
+    if i >= n {
+        i - n
+    } else {
+        i
+    }
 }
 
 impl RetriggerWatch {
@@ -246,6 +262,7 @@ impl RetriggerWatch {
             delay_len: 0,
             queue: std::collections::VecDeque::new(),
             threshold: 0.0,
+            isa: crate::frontend::simd::Isa::detect(),
         }
     }
 
@@ -273,14 +290,14 @@ impl RetriggerWatch {
         let leaving = if self.gap_blocks == 0 {
             Some(self.block_max)
         } else if self.delay_len < self.gap_blocks {
-            let slot = (self.delay_head + self.delay_len) % self.gap_blocks;
+            let slot = wrap(self.delay_head + self.delay_len, self.gap_blocks);
             self.delay[slot] = self.block_max;
             self.delay_len += 1;
             None
         } else {
             let oldest = self.delay[self.delay_head];
             self.delay[self.delay_head] = self.block_max;
-            self.delay_head = (self.delay_head + 1) % self.gap_blocks;
+            self.delay_head = wrap(self.delay_head + 1, self.gap_blocks);
             Some(oldest)
         };
         if let Some(m) = leaving {
@@ -315,13 +332,20 @@ impl RetriggerWatch {
             // magnitude is no hit (or that lies in the grace period) is taken whole.
             let take = (self.block - self.block_fill).min(samples.len() - done);
             let piece = &samples[done..done + take];
-            let mut piece_max = 0.0f64;
-            for &x in piece {
-                // A non-finite sample counts as 0, as in the per-sample test below.
-                let a = x.abs();
-                let a = if a < f64::INFINITY { a } else { 0.0 };
-                piece_max = if a > piece_max { a } else { piece_max };
-            }
+            // A non-finite sample counts as 0, as in the per-sample test below.
+            let piece_max = if piece.len() < SHORT_PIECE {
+                piece.iter().fold(0.0f64, |m, &x| {
+                    let a = x.abs();
+                    let a = if a < f64::INFINITY { a } else { 0.0 };
+                    if a > m {
+                        a
+                    } else {
+                        m
+                    }
+                })
+            } else {
+                super::sample_scan::max_abs_finite(self.isa, piece)
+            };
             let in_grace = self.seen + (take as u64) <= self.grace;
             if in_grace || piece_max < self.level || piece_max < self.threshold {
                 self.block_max = self.block_max.max(piece_max);
