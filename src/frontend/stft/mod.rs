@@ -591,7 +591,7 @@ mod tests {
             .map(|i| {
                 let t = i as f64 / fs;
                 (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * 52.3 * t).sin()
-                    + 0.3 * (-1.0 * t).exp() * (2.0 * std::f64::consts::PI * 131.0 * t).cos()
+                    + 0.3 * (-t).exp() * (2.0 * std::f64::consts::PI * 131.0 * t).cos()
             })
             .collect();
         let bands = [
