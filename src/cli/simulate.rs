@@ -8,6 +8,7 @@ use anyhow::{bail, Context};
 
 use crate::modal::Recordings;
 use crate::output::{write_recording_set_streamed, WavStreamWriter};
+use crate::sim::factored::FrfSolve;
 use crate::sim::model::Model;
 use crate::sim::simulate::{simulate_stream, Method, SimulateOptions, STREAM_BLOCK_FRAMES};
 use crate::sim::system::SensorWeights;
@@ -204,12 +205,18 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
     if args.timings {
         let t = &r.timings;
         eprintln!(
-            "timings: assembly {:.2} s, modes {:.2} s ({} modes), reduction {:.2} s, FRF {:.2} s ({} frequencies × {} sensors), impulse responses {:.2} s",
+            "timings: assembly {:.2} s, modes {:.2} s ({} modes), reduction {:.2} s, FRF {:.2} s ({}{} frequencies × {} sensors), impulse responses {:.2} s",
             t.assembly_s,
             t.modes_s,
             r.modes_used,
             t.reduction_s,
             t.frf_s,
+            match t.frf_solve {
+                Some(FrfSolve::Modal) => "modal superposition, ".to_string(),
+                Some(FrfSolve::StateSpace { states }) => format!("state space of {states} states, "),
+                Some(FrfSolve::PerFrequencyLu) => "dense LU per frequency, ".to_string(),
+                None => String::new(),
+            },
             r.n_frequencies,
             r.sensors.len(),
             t.impulse_s

@@ -10,6 +10,23 @@ use faer::{c64, Mat};
 
 use super::frf::Frf;
 
+/// How the responses of a reduced model were solved (reported by `simulate --timings`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "kind")]
+pub enum FrfSolve {
+    /// Modal superposition of a model whose damping does not depend on frequency (one real
+    /// eigen-solve), or of truncated modes.
+    #[default]
+    Modal,
+    /// One eigen-decomposition of the state-space form with this many states.
+    StateSpace {
+        /// Size of the state matrix.
+        states: usize,
+    },
+    /// A dense LU of the reduced dynamic stiffness at every frequency.
+    PerFrequencyLu,
+}
+
 /// H(f) = `modal` × `weights`ᵀ: receptance (m/N) at every frequency and sensor.
 #[derive(Clone, Debug)]
 pub struct FactoredFrf {
@@ -21,6 +38,8 @@ pub struct FactoredFrf {
     pub modal: Mat<c64>,
     /// Weight of each basis vector at each sensor: row = sensor, column = vector.
     pub weights: Mat<c64>,
+    /// How `modal` was solved.
+    pub solve: FrfSolve,
 }
 
 impl FactoredFrf {
@@ -64,6 +83,7 @@ mod tests {
             sensor_ids: (0..4).map(|s| format!("S{s}")).collect(),
             modal: modal.clone(),
             weights: weights.clone(),
+            solve: FrfSolve::Modal,
         };
         assert!(!f.real_weights());
         let full = f.to_frf();

@@ -30,7 +30,7 @@ use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatRef, Par, Side};
 
 pub(crate) use super::basis::{m_orthonormalise, m_orthonormalise_columns};
-use super::factored::FactoredFrf;
+use super::factored::{FactoredFrf, FrfSolve};
 use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
 use super::system::FeSystem;
 
@@ -136,7 +136,14 @@ pub(crate) fn k0(sys: &FeSystem) -> Result<SparseColMat<usize, f64>, FrfError> {
 /// Sparse × dense product, real.
 pub(super) fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
     let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    sparse_dense_matmul(out.as_mut(), Accum::Replace, a.as_ref(), b, 1.0, Par::Seq);
+    sparse_dense_matmul(
+        out.as_mut(),
+        Accum::Replace,
+        a.as_ref(),
+        b,
+        1.0,
+        faer::get_global_parallelism(),
+    );
     out
 }
 
@@ -429,9 +436,9 @@ impl ReducedModel {
     ) -> Result<FactoredFrf, FrfError> {
         validate_frequencies(freqs_hz)?;
         let diagonalised = match how {
-            ReducedSolve::Auto if self.frequency_independent() => {
-                self.frf_diagonalised(freqs_hz)?
-            }
+            ReducedSolve::Auto if self.frequency_independent() => self
+                .frf_diagonalised(freqs_hz)?
+                .map(|parts| (parts, FrfSolve::Modal)),
             ReducedSolve::Auto if self.state_space_pays(freqs_hz.len()) => {
                 self.frf_state_space(freqs_hz)?
             }
@@ -447,15 +454,16 @@ impl ReducedModel {
             }
             _ => None,
         };
-        let (modal, weights) = match diagonalised {
-            Some(parts) => parts,
-            None => self.frf_lu(freqs_hz)?,
+        let ((modal, weights), solve) = match diagonalised {
+            Some(done) => done,
+            None => (self.frf_lu(freqs_hz)?, FrfSolve::PerFrequencyLu),
         };
         Ok(FactoredFrf {
             frequencies_hz: freqs_hz.to_vec(),
             sensor_ids: self.sensor_ids.clone(),
             modal,
             weights,
+            solve,
         })
     }
 

@@ -91,6 +91,8 @@ pub struct Timings {
     pub reduction_s: f64,
     /// FRFs at every frequency and sensor.
     pub frf_s: f64,
+    /// How the reduced responses were solved (`None`: the direct method, or no reduction).
+    pub frf_solve: Option<super::factored::FrfSolve>,
     /// Inverse FFTs and noise.
     pub impulse_s: f64,
 }
@@ -427,6 +429,7 @@ fn reduce_and_solve(
     let t = Instant::now();
     let f = red.factored_frf(freqs, ReducedSolve::Auto)?;
     timings.frf_s = t.elapsed().as_secs_f64();
+    timings.frf_solve = Some(f.solve);
     Ok(f)
 }
 

@@ -18,11 +18,19 @@
 //! q(jω) = Σ_k X_q,k g_k / (jω − λ_k): the resolvent, exact, evaluated for all frequencies as
 //! one matrix product. It is trusted only if it reproduces the dense LU at a few frequencies
 //! ([`TRUST_FREQUENCIES`], [`TRUST_TOLERANCE`]); otherwise the caller falls back to the LU.
+//!
+//! The displacement-like states are scaled by s₀ = 2π × the top frequency (x = (s₀q, q̇, s₀y),
+//! a similarity: the eigenvalues do not change). Unscaled, the velocities are ~s₀ times the
+//! displacements, the eigenvector matrix is that much worse conditioned, and on the soft
+//! polymer patch (1104 states) the responses matched the LU only to 2e-6: the check rejected
+//! them and every frequency went to the LU after the eigen-solve had been paid. Scaled, they
+//! match to 1e-10.
 
 use faer::c64;
 use faer::linalg::solvers::Solve;
 use faer::{Accum, Mat, Side};
 
+use super::factored::FrfSolve;
 use super::frf::FrfError;
 use super::reduced::{FrfFactors, ReducedModel};
 
@@ -48,6 +56,12 @@ pub struct StateForm {
     pub input: Mat<c64>,
     /// Number of generalised coordinates m (the first m states are q).
     pub coordinates: usize,
+}
+
+/// The state scale s₀ for responses at `freqs_hz`: the top of the band (at least 1 rad/s).
+fn state_scale_rad_s(freqs_hz: &[f64]) -> f64 {
+    let top = freqs_hz.iter().fold(0.0f64, |a, &f| a.max(f));
+    (2.0 * std::f64::consts::PI * top).max(1.0)
 }
 
 /// `a` as complex.
@@ -105,8 +119,11 @@ impl ReducedModel {
         Ok(out)
     }
 
-    /// The state-space form of s²M̂ + sĈ + K̂(s) (see the module documentation).
-    pub fn state_form(&self) -> Result<StateForm, FrfError> {
+    /// The state-space form of s²M̂ + sĈ + K̂(s) (see the module documentation), with the
+    /// displacement-like states scaled by `scale_rad_s` (x = (s₀q, q̇, s₀y)): a similarity
+    /// that leaves the eigenvalues alone and balances the blocks for frequencies near s₀.
+    pub fn state_form_scaled(&self, scale_rad_s: f64) -> Result<StateForm, FrfError> {
+        let s0 = scale_rad_s;
         let m = self.size;
         let (alpha, beta) = self.rayleigh;
         let mut c = Mat::<c64>::from_fn(m, m, |i, j| c64::new(alpha * self.m_hat[(i, j)], 0.0));
@@ -121,20 +138,23 @@ impl ReducedModel {
         let relax = self.relaxations()?;
         let n = 2 * m + relax.iter().map(|r| r.range.ncols()).sum::<usize>();
         let mut a = Mat::<c64>::zeros(n, n);
-        let one = c64::new(1.0, 0.0);
         for i in 0..m {
-            a[(i, m + i)] = one;
+            a[(i, m + i)] = c64::new(s0, 0.0);
         }
-        a.as_mut().submatrix_mut(m, 0, m, m).copy_from(&(-&mk));
+        a.as_mut()
+            .submatrix_mut(m, 0, m, m)
+            .copy_from(&(faer::Scale(c64::new(-1.0 / s0, 0.0)) * &mk));
         a.as_mut().submatrix_mut(m, m, m, m).copy_from(&(-&mc));
         let mut at = 2 * m;
         for r in &relax {
             let k = r.range.ncols();
             let mcoup = lu.solve(&r.coupling);
-            a.as_mut().submatrix_mut(m, at, m, k).copy_from(&(-&mcoup));
+            a.as_mut()
+                .submatrix_mut(m, at, m, k)
+                .copy_from(&(faer::Scale(c64::new(-1.0 / s0, 0.0)) * &mcoup));
             a.as_mut()
                 .submatrix_mut(at, m, k, m)
-                .copy_from(&complex(&r.range.transpose().to_owned()));
+                .copy_from(&complex(&(r.range.transpose() * s0)));
             for i in 0..k {
                 a[(at + i, at + i)] = c64::new(-1.0 / r.tau_s, 0.0);
             }
@@ -156,11 +176,20 @@ impl ReducedModel {
         })
     }
 
+    /// The unscaled state-space form (s₀ = 1 rad/s).
+    pub fn state_form(&self) -> Result<StateForm, FrfError> {
+        self.state_form_scaled(1.0)
+    }
+
     /// Reduced coordinates at every frequency (frequency × m) by the eigen-decomposition of
     /// the state matrix, with the sensor rows of the basis; `None` when the decomposition does
     /// not reproduce the dense LU at the check frequencies (the caller then uses the LU).
-    pub(super) fn frf_state_space(&self, freqs_hz: &[f64]) -> Result<Option<FrfFactors>, FrfError> {
-        let form = self.state_form()?;
+    pub(super) fn frf_state_space(
+        &self,
+        freqs_hz: &[f64],
+    ) -> Result<Option<(FrfFactors, FrfSolve)>, FrfError> {
+        let scale = state_scale_rad_s(freqs_hz);
+        let form = self.state_form_scaled(scale)?;
         let m = form.coordinates;
         let evd = match form.matrix.eigen() {
             Ok(e) => e,
@@ -172,7 +201,7 @@ impl ReducedModel {
         drop(evd);
         let g = x.partial_piv_lu().solve(&form.input);
         // X_q scaled by g: q(jω) = Σ_k xg[:, k] / (jω − λ_k)
-        let xg_t = Mat::<c64>::from_fn(lam.len(), m, |k, i| x[(i, k)] * g[(k, 0)]);
+        let xg_t = Mat::<c64>::from_fn(lam.len(), m, |k, i| x[(i, k)] * g[(k, 0)] / scale);
         drop(x);
         let nf = freqs_hz.len();
         let mut q = Mat::<c64>::zeros(nf, m);
@@ -195,7 +224,8 @@ impl ReducedModel {
         if !self.agrees_with_lu(freqs_hz, &q)? {
             return Ok(None);
         }
-        Ok(Some((q, complex(&self.sv))))
+        let solve = FrfSolve::StateSpace { states: lam.len() };
+        Ok(Some(((q, complex(&self.sv)), solve)))
     }
 
     /// Whether `q` (frequency × m) matches the dense LU at [`TRUST_FREQUENCIES`] frequencies

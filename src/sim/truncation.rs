@@ -155,5 +155,6 @@ pub fn truncated_factored_frf(
         sensor_ids: sys.sensors.iter().map(|s| s.id.clone()).collect(),
         modal,
         weights,
+        solve: super::factored::FrfSolve::Modal,
     })
 }
