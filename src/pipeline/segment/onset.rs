@@ -226,10 +226,6 @@ pub struct RetriggerWatch {
     isa: crate::frontend::simd::Isa,
 }
 
-/// Pieces shorter than this are scanned inline: at low rates the watch's blocks are a few
-/// samples long (an eighth of a quarter period of the lowest band), too short for the lanes.
-const SHORT_PIECE: usize = 32;
-
 /// `i` modulo `n` for `i < 2n` (a ring index one step past its end), without a division.
 #[inline]
 fn wrap(i: usize, n: usize) -> usize {
@@ -333,19 +329,7 @@ impl RetriggerWatch {
             let take = (self.block - self.block_fill).min(samples.len() - done);
             let piece = &samples[done..done + take];
             // A non-finite sample counts as 0, as in the per-sample test below.
-            let piece_max = if piece.len() < SHORT_PIECE {
-                piece.iter().fold(0.0f64, |m, &x| {
-                    let a = x.abs();
-                    let a = if a < f64::INFINITY { a } else { 0.0 };
-                    if a > m {
-                        a
-                    } else {
-                        m
-                    }
-                })
-            } else {
-                super::sample_scan::max_abs_finite(self.isa, piece)
-            };
+            let piece_max = super::sample_scan::max_abs_finite(self.isa, piece);
             let in_grace = self.seen + (take as u64) <= self.grace;
             if in_grace || piece_max < self.level || piece_max < self.threshold {
                 self.block_max = self.block_max.max(piece_max);

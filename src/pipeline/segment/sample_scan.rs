@@ -9,8 +9,34 @@ use crate::frontend::simd::Isa;
 /// Lanes per scan step (two AVX2 vectors: enough independent chains to hide the latency).
 const LANES: usize = 8;
 
+/// Slices shorter than this are scanned serially, inline: at low rates the new-hit watch's
+/// blocks are a few samples long (an eighth of a quarter period of the lowest band), too short
+/// for the lanes to pay for the call.
+const SHORT_SCAN: usize = 32;
+
 /// The largest |x| over the finite samples of `x` (non-finite samples count as 0); 0 if empty.
 pub(crate) fn max_abs_finite(isa: Isa, x: &[f64]) -> f64 {
+    /// |v| for a finite v, else 0 (`a < ∞` is false for ±∞ and NaN).
+    #[inline(always)]
+    fn magnitude(v: f64) -> f64 {
+        let a = v.abs();
+        if a < f64::INFINITY {
+            a
+        } else {
+            0.0
+        }
+    }
+    #[inline(always)]
+    fn serial(x: &[f64]) -> f64 {
+        x.iter().fold(0.0f64, |best, &v| {
+            let a = magnitude(v);
+            if a > best {
+                a
+            } else {
+                best
+            }
+        })
+    }
     #[inline(always)]
     fn run(x: &[f64]) -> f64 {
         let mut lanes = [0.0f64; LANES];
@@ -18,19 +44,14 @@ pub(crate) fn max_abs_finite(isa: Isa, x: &[f64]) -> f64 {
         let tail = chunks.remainder();
         for chunk in chunks {
             for (m, &v) in lanes.iter_mut().zip(chunk) {
-                let a = v.abs();
-                // `a < ∞` is false for ±∞ and NaN: they count as 0.
-                let a = if a < f64::INFINITY { a } else { 0.0 };
+                let a = magnitude(v);
                 *m = if a > *m { a } else { *m };
             }
         }
-        let mut best = 0.0f64;
-        for &v in tail.iter().chain(&lanes) {
-            let a = v.abs();
-            let a = if a < f64::INFINITY { a } else { 0.0 };
-            best = if a > best { a } else { best };
-        }
-        best
+        serial(tail).max(serial(&lanes))
+    }
+    if x.len() < SHORT_SCAN {
+        return serial(x);
     }
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
