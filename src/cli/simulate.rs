@@ -8,7 +8,6 @@ use anyhow::{bail, Context};
 
 use crate::modal::Recordings;
 use crate::output::{write_recording_set_streamed, WavStreamWriter};
-use crate::sim::factored::FrfSolve;
 use crate::sim::model::Model;
 use crate::sim::simulate::{simulate_stream, Method, SimulateOptions, STREAM_BLOCK_FRAMES};
 use crate::sim::system::SensorWeights;
@@ -211,12 +210,7 @@ pub fn run(args: &SimulateArgs) -> anyhow::Result<()> {
             r.modes_used,
             t.reduction_s,
             t.frf_s,
-            match t.frf_solve {
-                Some(FrfSolve::Modal) => "modal superposition, ".to_string(),
-                Some(FrfSolve::StateSpace { states }) => format!("state space of {states} states, "),
-                Some(FrfSolve::PerFrequencyLu) => "dense LU per frequency, ".to_string(),
-                None => String::new(),
-            },
+            t.frf_solve.map_or(String::new(), |s| format!("{s}, ")),
             r.n_frequencies,
             r.sensors.len(),
             t.impulse_s

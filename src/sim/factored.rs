@@ -27,6 +27,16 @@ pub enum FrfSolve {
     PerFrequencyLu,
 }
 
+impl std::fmt::Display for FrfSolve {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            FrfSolve::Modal => write!(f, "modal superposition"),
+            FrfSolve::StateSpace { states } => write!(f, "state space of {states} states"),
+            FrfSolve::PerFrequencyLu => write!(f, "dense LU per frequency"),
+        }
+    }
+}
+
 /// H(f) = `modal` × `weights`ᵀ: receptance (m/N) at every frequency and sensor.
 #[derive(Clone, Debug)]
 pub struct FactoredFrf {

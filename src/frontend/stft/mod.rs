@@ -178,11 +178,7 @@ impl StftFrontEnd {
     }
 
     fn compute_frame(&mut self, start: usize, sink: &mut dyn FrameSink) {
-        FRAME_BUFFERS.with(|cell| match cell.try_borrow_mut() {
-            Ok(mut buffers) => self.fill_frame(start, &mut buffers),
-            // Only if a frame were computed inside another's (it is not): fresh buffers.
-            Err(_) => self.fill_frame(start, &mut FrameBuffers::default()),
-        });
+        with_frame_buffers(|buffers| self.fill_frame(start, buffers));
         self.emit(sink);
     }
 
@@ -193,10 +189,7 @@ impl StftFrontEnd {
         fft: &dyn rustfft::Fft<f64>,
         sink: &mut dyn FrameSink,
     ) {
-        FRAME_BUFFERS.with(|cell| match cell.try_borrow_mut() {
-            Ok(mut buffers) => self.fill_pair(start, fft, &mut buffers, sink),
-            Err(_) => self.fill_pair(start, fft, &mut FrameBuffers::default(), sink),
-        });
+        with_frame_buffers(|buffers| self.fill_pair(start, fft, buffers, sink));
     }
 
     fn emit(&self, sink: &mut dyn FrameSink) {
@@ -333,6 +326,15 @@ thread_local! {
     static FRAME_BUFFERS: std::cell::RefCell<FrameBuffers> = Default::default();
 }
 
+/// Runs `f` with this thread's frame buffers.
+fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R {
+    FRAME_BUFFERS.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut buffers) => f(&mut buffers),
+        // Only if a frame were computed inside another's (it is not): fresh buffers.
+        Err(_) => f(&mut FrameBuffers::default()),
+    })
+}
+
 /// The periodic Hann window of `len` samples, made once per length in the process.
 fn shared_hann(len: usize) -> Arc<[f64]> {
     static WINDOWS: std::sync::OnceLock<
@@ -461,10 +463,12 @@ impl FrontEnd for StftFrontEnd {
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         self.pending.extend_from_slice(samples);
         let w = self.window.len();
+        // The plan handle is taken once per call, not per frame.
+        let pair_fft = self.pair_fft.clone();
         while self.next_frame + w <= self.pending.len() {
-            match self.pair_fft.clone() {
+            match &pair_fft {
                 Some(pair) if self.next_frame + self.hop + w <= self.pending.len() => {
-                    self.compute_pair(self.next_frame, &*pair, sink);
+                    self.compute_pair(self.next_frame, pair.as_ref(), sink);
                     self.next_frame += 2 * self.hop;
                 }
                 _ => {
