@@ -76,22 +76,28 @@ pub fn flag_leakage(
     let e_max = order.first().map_or(0.0, |&k| bands[k].energy);
     // Sources: (band, its frequency, σ, energy / own gain).
     let mut sources: Vec<(usize, f64, f64, f64)> = Vec::new();
+    let mut tones: Vec<f64> = Vec::new();
     for &b in &order {
         let e = bands[b].energy;
         if e < e_max * floor {
             leaking[b] = true;
             continue;
         }
-        let leaked: f64 = sources
-            .iter()
-            .map(|&(_, f, sigma, scale)| scale * model.mode_gain(b, f, sigma))
-            .sum();
+        // What each source leaks into this band as a tone (a band sum over its bins: kept for
+        // the flat model below rather than computed twice).
+        tones.clear();
+        tones.extend(
+            sources
+                .iter()
+                .map(|&(_, f, sigma, scale)| scale * model.mode_gain(b, f, sigma)),
+        );
+        let leaked: f64 = tones.iter().sum();
         // Only a band the tone model condemns pays for the flat model's integrals.
         if e <= margin * leaked {
             let flat: f64 = sources
                 .iter()
-                .map(|&(s, f, sigma, scale)| {
-                    let tone = scale * model.mode_gain(b, f, sigma);
+                .zip(&tones)
+                .map(|(&(s, ..), &tone)| {
                     let (lo, hi) = (bands[s].lo_hz, bands[s].hi_hz);
                     let own = model.flat_gain(s, lo, hi);
                     let spread = if own > 0.0 {

@@ -119,27 +119,33 @@ pub trait FrontEnd: Send {
     /// what the band receives from content spread evenly over that range (a diffuse band of a
     /// room response, where a tone at the band's dominant frequency would be the wrong model).
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
-        const POINTS: usize = 33;
-        // Also catches NaN limits.
-        if hi_hz.partial_cmp(&lo_hz) != Some(std::cmp::Ordering::Greater) {
-            return self.mode_gain(band, lo_hz, 0.0);
-        }
-        // Simpson's rule on a grid fine against the band's own skirts.
-        let h = (hi_hz - lo_hz) / (POINTS - 1) as f64;
-        let sum: f64 = (0..POINTS)
-            .map(|i| {
-                let w = if i == 0 || i == POINTS - 1 {
-                    1.0
-                } else if i % 2 == 1 {
-                    4.0
-                } else {
-                    2.0
-                };
-                w * self.mode_gain(band, lo_hz + i as f64 * h, 0.0)
-            })
-            .sum();
-        sum * h / 3.0 / (hi_hz - lo_hz)
+        simpson_flat_gain(|f_hz| self.mode_gain(band, f_hz, 0.0), lo_hz, hi_hz)
     }
+}
+
+/// Mean of a stationary gain `gain(f_hz)` over `lo_hz..hi_hz` ([`FrontEnd::flat_gain`]):
+/// Simpson's rule on 33 points, fine against a band's own skirts; the gain at `lo_hz` for an
+/// empty or NaN range.
+pub(crate) fn simpson_flat_gain(gain: impl Fn(f64) -> f64, lo_hz: f64, hi_hz: f64) -> f64 {
+    const POINTS: usize = 33;
+    // Also catches NaN limits.
+    if hi_hz.partial_cmp(&lo_hz) != Some(std::cmp::Ordering::Greater) {
+        return gain(lo_hz);
+    }
+    let h = (hi_hz - lo_hz) / (POINTS - 1) as f64;
+    let sum: f64 = (0..POINTS)
+        .map(|i| {
+            let w = if i == 0 || i == POINTS - 1 {
+                1.0
+            } else if i % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            w * gain(lo_hz + i as f64 * h)
+        })
+        .sum();
+    sum * h / 3.0 / (hi_hz - lo_hz)
 }
 
 /// |Π sections(z)|² of a cascade of biquads `(b0 + b1 z⁻¹ + b2 z⁻²) / (1 + a1 z⁻¹ + a2 z⁻²)`

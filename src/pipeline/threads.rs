@@ -128,16 +128,15 @@ pub fn run_with(
         let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
             let mut failure = None;
             let mut read_s = 0.0;
-            // Blocks handed out, oldest first: one the workers are done with is read into
-            // again, so that the hot path allocates nothing once the pipeline is full.
-            let mut recycled: std::collections::VecDeque<Arc<Block>> = Default::default();
+            // Blocks handed out: any one every worker is done with is read into again, so
+            // that the hot path allocates nothing once the pipeline is full (a fresh block of
+            // a 64-channel stream is megabytes of new pages to fault in).
+            let mut pool: Vec<Arc<Block>> = Vec::new();
             loop {
-                let mut block = match recycled.front().map(Arc::strong_count) {
-                    Some(1) => recycled
-                        .pop_front()
-                        .and_then(|b| Arc::try_unwrap(b).ok())
-                        .unwrap_or_default(),
-                    _ => Block::default(),
+                let mut block = match pool.iter().position(|b| Arc::strong_count(b) == 1) {
+                    // Only this thread holds pool handles, so a free block stays free.
+                    Some(i) => Arc::try_unwrap(pool.swap_remove(i)).unwrap_or_default(),
+                    None => Block::default(),
                 };
                 let t0 = std::time::Instant::now();
                 let got = source.read_block(block_frames, &mut block);
@@ -151,9 +150,11 @@ pub fn run_with(
                         {
                             break;
                         }
-                        recycled.push_back(b);
-                        if recycled.len() > BLOCKS_IN_FLIGHT as usize {
-                            recycled.pop_front();
+                        pool.push(b);
+                        if pool.len() > BLOCKS_IN_FLIGHT as usize {
+                            // More alive than the queues can hold: forget one handle (its
+                            // memory goes when the workers drop it).
+                            pool.remove(0);
                         }
                     }
                     Ok(false) => break,

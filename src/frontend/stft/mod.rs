@@ -64,7 +64,10 @@ struct BandBins {
 /// Streaming STFT: samples in, per band one energy (and peak frequency) per hop out.
 pub struct StftFrontEnd {
     bands: Vec<Band>,
-    band_bins: Vec<BandBins>,
+    /// The bands' bins and weights, shared by every front end of the same transform and bands
+    /// (like the window: one copy in the cache for all channels — one per channel made reading
+    /// the weights the largest per-frame cost after the FFT at 48 kHz).
+    band_bins: Arc<[BandBins]>,
     /// The periodic Hann window, shared by every front end of the same length (one copy in the
     /// cache for all channels).
     window: Arc<[f64]>,
@@ -145,10 +148,7 @@ impl StftFrontEnd {
         let fft = shared_plan(nfft);
         let n_bins = nfft / 2 + 1;
         let bin_hz = sample_rate_hz / nfft as f64;
-        let band_bins = bands
-            .iter()
-            .map(|b| band_weights(b, bin_hz, n_bins))
-            .collect();
+        let band_bins = shared_band_bins(bands, bin_hz, n_bins);
         Ok(StftFrontEnd {
             bands: bands.to_vec(),
             band_bins,
@@ -378,6 +378,31 @@ fn shared_complex_plan(nfft: usize) -> Arc<dyn rustfft::Fft<f64>> {
     }
 }
 
+/// The bins and weights of `bands`, made once per transform and band set in the process.
+fn shared_band_bins(bands: &[Band], bin_hz: f64, n_bins: usize) -> Arc<[BandBins]> {
+    type Key = (u64, usize, Vec<(u64, u64)>);
+    type Cache = std::sync::Mutex<std::collections::HashMap<Key, Arc<[BandBins]>>>;
+    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
+    let make = || -> Arc<[BandBins]> {
+        bands
+            .iter()
+            .map(|b| band_weights(b, bin_hz, n_bins))
+            .collect()
+    };
+    let key: Key = (
+        bin_hz.to_bits(),
+        n_bins,
+        bands
+            .iter()
+            .map(|b| (b.lo_hz.to_bits(), b.hi_hz.to_bits()))
+            .collect(),
+    );
+    match CACHE.get_or_init(Default::default).lock() {
+        Ok(mut cache) => cache.entry(key).or_insert_with(make).clone(),
+        Err(_) => make(),
+    }
+}
+
 /// Bin weights of `band`: the fraction of each bin's extent inside the band.
 fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
     let lo_bin = ((band.lo_hz / bin_hz) - 0.5).floor().max(0.0) as usize;
@@ -520,6 +545,52 @@ impl FrontEnd for StftFrontEnd {
     fn frequency_tolerance_hz(&self) -> f64 {
         0.5 * self.sample_rate_hz / self.window.len() as f64
     }
+
+    fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
+        // It depends only on the transform and the two ranges, and every channel of a run asks
+        // for the same few: computed once per process (66 band sums of hundreds of bins each
+        // were a third of a short run's time).
+        let b = &self.bands[band];
+        let key = FlatGainKey([
+            self.sample_rate_hz.to_bits(),
+            self.window.len() as u64,
+            self.zero_pad as u64,
+            b.lo_hz.to_bits(),
+            b.hi_hz.to_bits(),
+            lo_hz.to_bits(),
+            hi_hz.to_bits(),
+        ]);
+        memoized_flat_gain(key, || {
+            super::simpson_flat_gain(|f_hz| self.mode_gain(band, f_hz, 0.0), lo_hz, hi_hz)
+        })
+    }
+}
+
+/// What a flat gain depends on: sample rate, window length, zero padding, the band's edges and
+/// the range's edges (as bits: the same inputs give the same number).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct FlatGainKey([u64; 7]);
+
+/// Flat gains kept at most (a run asks for a few per pair of bands; beyond this they are
+/// computed each time).
+const FLAT_GAIN_MEMO_ENTRIES: usize = 1 << 16;
+
+/// The flat gain of `key`, computed by `compute` the first time in the process.
+fn memoized_flat_gain(key: FlatGainKey, compute: impl FnOnce() -> f64) -> f64 {
+    type Memo = std::sync::Mutex<std::collections::HashMap<FlatGainKey, f64>>;
+    static MEMO: std::sync::OnceLock<Memo> = std::sync::OnceLock::new();
+    let memo = MEMO.get_or_init(Default::default);
+    if let Some(g) = memo.lock().ok().and_then(|m| m.get(&key).copied()) {
+        return g;
+    }
+    // Computed outside the lock: two threads may both compute it, to the same value.
+    let g = compute();
+    if let Ok(mut m) = memo.lock() {
+        if m.len() < FLAT_GAIN_MEMO_ENTRIES {
+            m.insert(key, g);
+        }
+    }
+    g
 }
 
 #[cfg(test)]
