@@ -40,6 +40,17 @@ pub trait DecayEstimator: Send {
     /// Forgets everything, ready for a new decay.
     fn reset(&mut self);
 
+    /// Makes room for `frames` more frames at once (a buffered front end emits a whole decay):
+    /// the history then grows once instead of by repeated doubling and copying.
+    fn reserve_frames(&mut self, _frames: usize) {}
+
+    /// Forgets everything and gives the frame history's memory back (a decay of a multichannel
+    /// run is done: the next channel's decay reuses the memory instead of faulting in new
+    /// pages).
+    fn release(&mut self) {
+        self.reset();
+    }
+
     /// Total energy of the frames so far (the leakage test compares bands by it).
     fn total_energy(&self) -> f64;
 

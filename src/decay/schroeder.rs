@@ -159,6 +159,17 @@ impl DecayEstimator for OnlineSchroeder {
         self.running = CompensatedSum::default();
     }
 
+    fn reserve_frames(&mut self, frames: usize) {
+        self.energies.reserve(frames);
+        self.frequencies_hz.reserve(frames);
+    }
+
+    fn release(&mut self) {
+        self.energies = Vec::new();
+        self.frequencies_hz = Vec::new();
+        self.running = CompensatedSum::default();
+    }
+
     fn total_energy(&self) -> f64 {
         self.running.value()
     }

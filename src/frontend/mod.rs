@@ -49,6 +49,10 @@ pub struct Frame<'a> {
 pub trait FrameSink {
     /// Called once per completed frame, in time order.
     fn frame(&mut self, frame: Frame<'_>);
+
+    /// Told before `frames` frames come at once (a buffered bank emitting a whole decay), so
+    /// that the sink can make room for them in one step.
+    fn expect_frames(&mut self, _frames: usize) {}
 }
 
 impl<F: FnMut(Frame<'_>)> FrameSink for F {
@@ -277,6 +281,7 @@ pub(crate) fn emit_band_frames(
         return;
     }
     let n_frames = energy.len() / nb;
+    sink.expect_frames(n_frames);
     let mut active = vec![true; nb];
     for k in 0..n_frames {
         for (a, &end) in active.iter_mut().zip(band_frames) {

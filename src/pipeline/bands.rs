@@ -148,6 +148,24 @@ impl<E: DecayEstimator> BandTrackers<E> {
         }
     }
 
+    /// Makes room for `frames` more frames in every band's history.
+    pub(super) fn reserve(&mut self, frames: usize) {
+        self.estimators
+            .iter_mut()
+            .for_each(|e| e.reserve_frames(frames));
+        self.cumulative.iter_mut().for_each(|c| c.reserve(frames));
+    }
+
+    /// Like [`BandTrackers::reset`], and gives the histories' memory back: a long decay's
+    /// frames are megabytes per channel, reused by the next channel to finish.
+    pub(super) fn release(&mut self) {
+        self.reset();
+        self.estimators.iter_mut().for_each(|e| e.release());
+        self.cumulative.iter_mut().for_each(|c| {
+            *c = vec![0.0];
+        });
+    }
+
     pub(super) fn reset(&mut self) {
         self.estimators.iter_mut().for_each(|e| e.reset());
         self.peak.iter_mut().for_each(|p| *p = 0.0);
@@ -199,5 +217,34 @@ impl<E: DecayEstimator> BandTrackers<E> {
             let (a, b, z) = (c[n - 2 * q], c[n - q], c[n]);
             z - b >= (b - a) * floor.flat_factor
         })
+    }
+}
+
+/// The trackers take a front end's frames directly, and make room when told how many come.
+impl<E: DecayEstimator> crate::frontend::FrameSink for BandTrackers<E> {
+    fn frame(&mut self, frame: Frame<'_>) {
+        self.push(frame);
+    }
+
+    fn expect_frames(&mut self, frames: usize) {
+        self.reserve(frames);
+    }
+}
+
+/// [`BandTrackers`] as a sink that adds the time spent in them to a clock (profiled runs).
+pub(super) struct TimedTrackers<'a> {
+    pub(super) trackers: &'a mut BandTrackers,
+    pub(super) seconds: &'a mut f64,
+}
+
+impl crate::frontend::FrameSink for TimedTrackers<'_> {
+    fn frame(&mut self, frame: Frame<'_>) {
+        let t0 = std::time::Instant::now();
+        self.trackers.push(frame);
+        *self.seconds += t0.elapsed().as_secs_f64();
+    }
+
+    fn expect_frames(&mut self, frames: usize) {
+        self.trackers.reserve(frames);
     }
 }

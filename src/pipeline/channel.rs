@@ -1,6 +1,6 @@
 //! One channel's stream: decay onsets, new hits, the front end and the band estimators.
 
-use super::bands::{judge_bands, BandTrackers, FloorEnd};
+use super::bands::{judge_bands, BandTrackers, FloorEnd, TimedTrackers};
 use super::segment::double_hit::{is_double_hit, DOUBLE_HIT_HISTORY_SAMPLES};
 use super::segment::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerWatch};
 use super::segment::sample_scan::first_non_finite;
@@ -8,7 +8,7 @@ use super::segment::RETRIGGER_MIN_FREQUENCY_HZ;
 use super::{AnalysisConfig, ResultRow};
 use crate::decay::{DecayEstimate, DecayEstimator, Flag};
 use crate::frontend::simd::Isa;
-use crate::frontend::{Frame, FrontEnd};
+use crate::frontend::FrontEnd;
 
 enum State {
     Searching,
@@ -219,12 +219,14 @@ impl ChannelAnalyzer {
     fn feed(&mut self, samples: &[f64]) {
         let trackers = &mut self.trackers;
         match &mut self.clock {
-            None => self
-                .front_end
-                .process(samples, &mut |f: Frame<'_>| trackers.push(f)),
-            Some(clock) => self.front_end.process(samples, &mut |f: Frame<'_>| {
-                timed(Some(&mut clock.estimator_s), || trackers.push(f))
-            }),
+            None => self.front_end.process(samples, trackers),
+            Some(clock) => self.front_end.process(
+                samples,
+                &mut TimedTrackers {
+                    trackers,
+                    seconds: &mut clock.estimator_s,
+                },
+            ),
         }
     }
 
@@ -257,9 +259,10 @@ impl ChannelAnalyzer {
         };
         let trackers = &mut self.trackers;
         match &mut self.clock {
-            None => self.front_end.finish(&mut |f: Frame<'_>| trackers.push(f)),
-            Some(clock) => self.front_end.finish(&mut |f: Frame<'_>| {
-                timed(Some(&mut clock.estimator_s), || trackers.push(f))
+            None => self.front_end.finish(trackers),
+            Some(clock) => self.front_end.finish(&mut TimedTrackers {
+                trackers,
+                seconds: &mut clock.estimator_s,
             }),
         }
         if self.decays > 0 && self.trackers.estimators.iter().all(|e| e.frames() == 0) {
@@ -311,6 +314,8 @@ impl ChannelAnalyzer {
         }
         let onset_s = onset_index as f64 / self.sample_rate_hz;
         out.extend(self.rows_for(onset_index, Some(onset_s), estimates));
+        // The frame histories are done with: their memory goes to the next channel to finish.
+        self.trackers.release();
         self.decays += 1;
         self.state = State::Searching;
         self.detector
