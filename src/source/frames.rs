@@ -5,6 +5,7 @@
 use std::io::{self, Read};
 
 use super::{Block, SourceError};
+use crate::frontend::simd::Isa;
 
 /// Upper bound on the bytes read by one `read_block` call.
 const MAX_BLOCK_BYTES: usize = 1 << 20;
@@ -70,6 +71,11 @@ const TILE_FRAMES: usize = 64;
 /// count of samples). The codec is resolved once, outside the loops, and the frames are taken in tiles,
 /// so that each channel's writes are sequential and its reads stay in the cache.
 fn deinterleave(codec: Codec, bytes: &[u8], scale: f64, channels: &mut [Vec<f64>]) {
+    deinterleave_with(Isa::detect(), codec, bytes, scale, channels)
+}
+
+/// [`deinterleave`] with the instruction set given.
+fn deinterleave_with(isa: Isa, codec: Codec, bytes: &[u8], scale: f64, channels: &mut [Vec<f64>]) {
     #[inline(always)]
     fn run<const B: usize>(
         bytes: &[u8],
@@ -96,6 +102,12 @@ fn deinterleave(codec: Codec, bytes: &[u8], scale: f64, channels: &mut [Vec<f64>
                 }));
             }
         }
+    }
+    #[cfg(target_arch = "x86_64")]
+    if codec == Codec::F32 && channels.len() % 8 == 0 && isa != Isa::Generic {
+        // SAFETY: `Isa::detect` found AVX2 on this CPU; the channel count is a multiple of 8.
+        unsafe { f32_by_eights_avx2(bytes, scale, channels) };
+        return;
     }
     match codec {
         Codec::U8 => run::<1>(bytes, scale, channels, |b| f64::from(b[0]) - 128.0),
@@ -287,12 +299,100 @@ impl<R: Read> FrameReader<R> {
     }
 }
 
+/// [`deinterleave`] of 32-bit floats when the channels come in groups of eight (the common
+/// 8/16/32/64-channel arrays): per group, eight frames at a time are loaded as eight vectors,
+/// transposed in registers, widened to f64 and stored, four samples per instruction. The
+/// scalar path picks one sample per channel per frame and was a tenth of a whole 48 kHz run.
+/// The same conversion and product as the scalar path: identical bits.
+///
+/// # Safety
+/// The CPU must have AVX2, and `channels.len()` must be a multiple of 8.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn f32_by_eights_avx2(bytes: &[u8], scale: f64, channels: &mut [Vec<f64>]) {
+    use std::arch::x86_64::*;
+    let n_ch = channels.len();
+    debug_assert!(n_ch > 0 && n_ch % 8 == 0);
+    let frames = bytes.len() / (4 * n_ch);
+    let whole = frames / 8 * 8;
+    for ch in channels.iter_mut() {
+        ch.clear();
+        ch.reserve(frames);
+    }
+    let src = bytes.as_ptr();
+    let factor = _mm256_set1_pd(scale);
+    for t0 in (0..whole).step_by(TILE_FRAMES) {
+        let t1 = (t0 + TILE_FRAMES).min(whole);
+        for (g, group) in channels.chunks_exact_mut(8).enumerate() {
+            let out: [*mut f64; 8] = std::array::from_fn(|j| group[j].as_mut_ptr());
+            for f in (t0..t1).step_by(8) {
+                // r[i] = channels 8g..8g+8 of frame f + i (in bounds: f + 8 <= frames).
+                let r: [__m256; 8] = std::array::from_fn(|i| {
+                    _mm256_loadu_ps(src.add(((f + i) * n_ch + 8 * g) * 4) as *const f32)
+                });
+                let c = transpose_8x8(r);
+                for (j, &v) in c.iter().enumerate() {
+                    let lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
+                    let hi = _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v));
+                    // In bounds: `reserve(frames)` above, f + 8 <= frames.
+                    _mm256_storeu_pd(out[j].add(f), _mm256_mul_pd(lo, factor));
+                    _mm256_storeu_pd(out[j].add(f + 4), _mm256_mul_pd(hi, factor));
+                }
+            }
+        }
+    }
+    for (c, ch) in channels.iter_mut().enumerate() {
+        // The first `whole` samples were written above.
+        ch.set_len(whole);
+        ch.extend((whole..frames).map(|f| {
+            let at = (f * n_ch + c) * 4;
+            let mut raw = [0u8; 4];
+            raw.copy_from_slice(&bytes[at..at + 4]);
+            f64::from(f32::from_le_bytes(raw)) * scale
+        }));
+    }
+}
+
+/// The transpose of an 8 × 8 matrix of f32 held as eight row vectors.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn transpose_8x8(r: [std::arch::x86_64::__m256; 8]) -> [std::arch::x86_64::__m256; 8] {
+    use std::arch::x86_64::*;
+    let t0 = _mm256_unpacklo_ps(r[0], r[1]);
+    let t1 = _mm256_unpackhi_ps(r[0], r[1]);
+    let t2 = _mm256_unpacklo_ps(r[2], r[3]);
+    let t3 = _mm256_unpackhi_ps(r[2], r[3]);
+    let t4 = _mm256_unpacklo_ps(r[4], r[5]);
+    let t5 = _mm256_unpackhi_ps(r[4], r[5]);
+    let t6 = _mm256_unpacklo_ps(r[6], r[7]);
+    let t7 = _mm256_unpackhi_ps(r[6], r[7]);
+    let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
+    let u1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
+    let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
+    let u3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
+    let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
+    let u5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
+    let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
+    let u7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
+    [
+        _mm256_permute2f128_ps::<0x20>(u0, u4),
+        _mm256_permute2f128_ps::<0x20>(u1, u5),
+        _mm256_permute2f128_ps::<0x20>(u2, u6),
+        _mm256_permute2f128_ps::<0x20>(u3, u7),
+        _mm256_permute2f128_ps::<0x31>(u0, u4),
+        _mm256_permute2f128_ps::<0x31>(u1, u5),
+        _mm256_permute2f128_ps::<0x31>(u2, u6),
+        _mm256_permute2f128_ps::<0x31>(u3, u7),
+    ]
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     /// The tiled, per-codec decoder against one sample at a time, for every codec, channel
-    /// counts around the tile and frame counts that leave a partial tile.
+    /// counts around the tile and the 8-channel groups, and frame counts that leave a partial
+    /// tile or a partial group of eight frames.
     #[test]
     fn deinterleave_matches_sample_by_sample_decoding() {
         let codecs = [
@@ -304,8 +404,9 @@ mod tests {
             Codec::F64,
         ];
         for codec in codecs {
-            for n_ch in [1, 3, 64] {
-                for frames in [0, 1, 63, 64, 65, 200] {
+            // 8, 16 and 64 channels take the transposing f32 kernel where the CPU has AVX2.
+            for n_ch in [1, 3, 8, 16, 64] {
+                for frames in [0, 1, 7, 9, 63, 64, 65, 200] {
                     let sb = codec.bytes();
                     let mut bytes = vec![0u8; frames * n_ch * sb];
                     for (i, b) in bytes.iter_mut().enumerate() {
@@ -322,14 +423,21 @@ mod tests {
                             }
                         }
                     }
-                    let mut got = vec![Vec::new(); n_ch];
-                    deinterleave(codec, &bytes, 0.5, &mut got);
-                    for (c, ch) in got.iter().enumerate() {
-                        assert_eq!(ch.len(), frames);
-                        for (i, v) in ch.iter().enumerate() {
-                            let at = (i * n_ch + c) * sb;
-                            let want = codec.decode(&bytes[at..at + sb]) * 0.5;
-                            assert_eq!(v.to_bits(), want.to_bits(), "{codec:?} {n_ch} ch #{i}");
+                    for isa in Isa::available() {
+                        // Blocks are decoded into recycled vectors: start from stale ones.
+                        let mut got = vec![vec![-1.0; 5]; n_ch];
+                        deinterleave_with(isa, codec, &bytes, 0.5, &mut got);
+                        for (c, ch) in got.iter().enumerate() {
+                            assert_eq!(ch.len(), frames);
+                            for (i, v) in ch.iter().enumerate() {
+                                let at = (i * n_ch + c) * sb;
+                                let want = codec.decode(&bytes[at..at + sb]) * 0.5;
+                                assert_eq!(
+                                    v.to_bits(),
+                                    want.to_bits(),
+                                    "{isa:?} {codec:?} {n_ch} ch #{i}"
+                                );
+                            }
                         }
                     }
                 }
