@@ -104,7 +104,7 @@ fn deinterleave_with(isa: Isa, codec: Codec, bytes: &[u8], scale: f64, channels:
         }
     }
     #[cfg(target_arch = "x86_64")]
-    if codec == Codec::F32 && channels.len() % 8 == 0 && isa != Isa::Generic {
+    if codec == Codec::F32 && channels.len().is_multiple_of(8) && isa != Isa::Generic {
         // SAFETY: `Isa::detect` found AVX2 on this CPU; the channel count is a multiple of 8.
         unsafe { f32_by_eights_avx2(bytes, scale, channels) };
         return;
@@ -312,7 +312,7 @@ impl<R: Read> FrameReader<R> {
 unsafe fn f32_by_eights_avx2(bytes: &[u8], scale: f64, channels: &mut [Vec<f64>]) {
     use std::arch::x86_64::*;
     let n_ch = channels.len();
-    debug_assert!(n_ch > 0 && n_ch % 8 == 0);
+    debug_assert!(n_ch > 0 && n_ch.is_multiple_of(8));
     let frames = bytes.len() / (4 * n_ch);
     let whole = frames / 8 * 8;
     for ch in channels.iter_mut() {

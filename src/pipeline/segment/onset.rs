@@ -211,16 +211,19 @@ pub struct RetriggerWatch {
     /// Largest magnitude of the current block so far, and its sample count.
     block_max: f64,
     block_fill: usize,
-    /// Index of the current block.
+    /// Blocks closed since the restart (the current block's index).
     block_index: u64,
-    /// The last `gap_blocks` block maxima, not yet in the window.
-    /// A ring of `gap_blocks` slots: `delay_len` of them filled, the oldest at `delay_head`.
-    delay: Vec<f64>,
-    delay_head: usize,
-    delay_len: usize,
-    /// (block index, maximum) of the window's blocks, maxima strictly decreasing front to back.
+    /// The maxima of the last `gap_blocks + window_blocks` closed blocks (all a window can
+    /// reach), a ring whose next slot is `ring_head`.
+    maxima: Vec<f64>,
+    ring_head: usize,
+    /// (block index, maximum) of the window's blocks, maxima strictly decreasing front to back;
+    /// kept up to date block by block only while `live` (rebuilt from `maxima` when the
+    /// threshold is next needed: in a decay's quiet tail no sample can be a hit, and only the
+    /// block maxima are kept).
     queue: std::collections::VecDeque<(u64, f64)>,
-    /// `jump` × the window's maximum (fixed within a block).
+    live: bool,
+    /// `jump` × the window's maximum (fixed within a block; valid while `live`).
     threshold: f64,
     /// Instruction set of the per-piece maximum.
     isa: crate::frontend::simd::Isa,
@@ -242,10 +245,12 @@ impl RetriggerWatch {
     /// of an eighth of the gap, so the gap may grow by up to one block.
     pub fn new(window_samples: usize, gap_samples: usize, jump_db: f64) -> Self {
         let block = (gap_samples / 8).max(1);
+        let window_blocks = window_samples.max(1).div_ceil(block);
+        let gap_blocks = gap_samples.div_ceil(block);
         RetriggerWatch {
             block,
-            window_blocks: window_samples.max(1).div_ceil(block),
-            gap_blocks: gap_samples.div_ceil(block),
+            window_blocks,
+            gap_blocks,
             jump: 10f64.powf(jump_db / 20.0),
             level: f64::INFINITY,
             grace: 0,
@@ -253,10 +258,10 @@ impl RetriggerWatch {
             block_max: 0.0,
             block_fill: 0,
             block_index: 0,
-            delay: vec![0.0; gap_samples.div_ceil(block)],
-            delay_head: 0,
-            delay_len: 0,
+            maxima: vec![0.0; gap_blocks + window_blocks],
+            ring_head: 0,
             queue: std::collections::VecDeque::new(),
+            live: true,
             threshold: 0.0,
             isa: crate::frontend::simd::Isa::detect(),
         }
@@ -272,38 +277,38 @@ impl RetriggerWatch {
         self.block_max = 0.0;
         self.block_fill = 0;
         self.block_index = 0;
-        self.delay_head = 0;
-        self.delay_len = 0;
+        self.ring_head = 0;
         self.queue.clear();
+        self.live = true;
         self.threshold = 0.0;
     }
 
-    /// Closes the current block: its maximum enters the delay line; the oldest delayed block
-    /// enters the window; blocks older than the window leave it.
+    /// The maximum of closed block `k` (one of the last `maxima.len()` closed).
+    fn block_maximum(&self, k: u64) -> f64 {
+        let back = (self.block_index - k) as usize;
+        debug_assert!(back >= 1 && back <= self.maxima.len());
+        self.maxima[wrap(self.ring_head + self.maxima.len() - back, self.maxima.len())]
+    }
+
+    /// Closes the current block: its maximum enters the ring; while the window is kept live,
+    /// the block `gap_blocks` back enters it and blocks older than the window leave it.
     fn close_block(&mut self) {
-        // The block `gap_blocks` blocks back leaves the delay line (the one just closed when
-        // there is no gap).
-        let leaving = if self.gap_blocks == 0 {
-            Some(self.block_max)
-        } else if self.delay_len < self.gap_blocks {
-            let slot = wrap(self.delay_head + self.delay_len, self.gap_blocks);
-            self.delay[slot] = self.block_max;
-            self.delay_len += 1;
-            None
-        } else {
-            let oldest = self.delay[self.delay_head];
-            self.delay[self.delay_head] = self.block_max;
-            self.delay_head = wrap(self.delay_head + 1, self.gap_blocks);
-            Some(oldest)
-        };
-        if let Some(m) = leaving {
-            let k = self.block_index - self.gap_blocks as u64;
+        self.maxima[self.ring_head] = self.block_max;
+        self.ring_head = wrap(self.ring_head + 1, self.maxima.len());
+        self.block_index += 1;
+        self.block_max = 0.0;
+        self.block_fill = 0;
+        if !self.live {
+            return;
+        }
+        let gap = self.gap_blocks as u64;
+        if let Some(k) = (self.block_index - 1).checked_sub(gap) {
+            let m = self.block_maximum(k);
             while self.queue.back().is_some_and(|&(_, v)| v <= m) {
                 self.queue.pop_back();
             }
             self.queue.push_back((k, m));
         }
-        self.block_index += 1;
         let oldest = self
             .block_index
             .saturating_sub((self.gap_blocks + self.window_blocks) as u64);
@@ -311,8 +316,64 @@ impl RetriggerWatch {
             self.queue.pop_front();
         }
         self.threshold = self.jump * self.queue.front().map_or(0.0, |&(_, m)| m);
-        self.block_max = 0.0;
-        self.block_fill = 0;
+    }
+
+    /// `jump` × the window's maximum for the current block, the window rebuilt from the ring
+    /// if it was not kept live.
+    fn current_threshold(&mut self) -> f64 {
+        if !self.live {
+            self.queue.clear();
+            let b = self.block_index;
+            let window_end = b.saturating_sub(self.gap_blocks as u64);
+            let window_start = b.saturating_sub((self.gap_blocks + self.window_blocks) as u64);
+            for k in window_start..window_end {
+                let m = self.block_maximum(k);
+                while self.queue.back().is_some_and(|&(_, v)| v <= m) {
+                    self.queue.pop_back();
+                }
+                self.queue.push_back((k, m));
+            }
+            self.threshold = self.jump * self.queue.front().map_or(0.0, |&(_, m)| m);
+            self.live = true;
+        }
+        self.threshold
+    }
+
+    /// Takes `samples` of which none can be a hit (all within the grace period, or all below
+    /// the level): only the block maxima a later window can reach are kept, and the window is
+    /// rebuilt when next needed.
+    fn absorb(&mut self, samples: &[f64]) {
+        self.live = false;
+        let mut rest = samples;
+        // The rest of the current block.
+        let first = (self.block - self.block_fill).min(rest.len());
+        let head = super::sample_scan::max_abs_finite(self.isa, &rest[..first]);
+        self.block_max = self.block_max.max(head);
+        self.block_fill += first;
+        self.seen += first as u64;
+        rest = &rest[first..];
+        if self.block_fill < self.block {
+            // All of it went into the current block.
+            return;
+        }
+        self.close_block();
+        // Whole blocks: those older than the ring's reach are counted, not scanned.
+        let whole = rest.len() / self.block;
+        let skipped = whole.saturating_sub(self.maxima.len());
+        self.block_index += skipped as u64;
+        self.seen += (skipped * self.block) as u64;
+        rest = &rest[skipped * self.block..];
+        while rest.len() >= self.block {
+            let (this, next) = rest.split_at(self.block);
+            self.block_max = super::sample_scan::max_abs_finite(self.isa, this);
+            self.seen += self.block as u64;
+            self.close_block();
+            rest = next;
+        }
+        // The start of the next block.
+        self.block_max = super::sample_scan::max_abs_finite(self.isa, rest);
+        self.block_fill = rest.len();
+        self.seen += rest.len() as u64;
     }
 
     /// Scans `samples`; returns the index of the first one that is a new hit (it and the rest
@@ -320,6 +381,12 @@ impl RetriggerWatch {
     pub fn scan(&mut self, samples: &[f64]) -> Option<usize> {
         if !self.jump.is_finite() {
             // Splitting off: nothing to watch.
+            return None;
+        }
+        // A stretch wholly within the grace period or below the level holds no hit.
+        let in_grace = self.seen + samples.len() as u64 <= self.grace;
+        if in_grace || super::sample_scan::max_abs_finite(self.isa, samples) < self.level {
+            self.absorb(samples);
             return None;
         }
         let mut done = 0;
@@ -331,14 +398,15 @@ impl RetriggerWatch {
             // A non-finite sample counts as 0, as in the per-sample test below.
             let piece_max = super::sample_scan::max_abs_finite(self.isa, piece);
             let in_grace = self.seen + (take as u64) <= self.grace;
-            if in_grace || piece_max < self.level || piece_max < self.threshold {
+            if in_grace || piece_max < self.level || piece_max < self.current_threshold() {
                 self.block_max = self.block_max.max(piece_max);
                 self.seen += take as u64;
                 self.block_fill += take;
             } else {
+                let threshold = self.current_threshold();
                 for (i, &x) in piece.iter().enumerate() {
                     let a = if x.is_finite() { x.abs() } else { 0.0 };
-                    if a >= self.level && a >= self.threshold && self.seen >= self.grace {
+                    if a >= self.level && a >= threshold && self.seen >= self.grace {
                         return Some(done + i);
                     }
                     self.block_max = self.block_max.max(a);
@@ -398,6 +466,78 @@ mod tests {
                 (-sigma * t).exp() * (w(f1) + w(f2))
             })
             .collect()
+    }
+
+    /// The watch's criterion, directly: sample i (block j = i / block) is a hit when i is past
+    /// the grace period and |x_i| is at least the level and `jump` × the largest |x| of blocks
+    /// j − gap − window … j − gap − 1 (non-finite samples count as 0).
+    fn first_hit_direct(w: &RetriggerWatch, x: &[f64], level: f64, grace: usize) -> Option<usize> {
+        let grace = grace.max((w.window_blocks + w.gap_blocks + 1) * w.block);
+        let mag = |v: f64| if v.is_finite() { v.abs() } else { 0.0 };
+        (0..x.len()).find(|&i| {
+            let j = i / w.block;
+            let hi = j.saturating_sub(w.gap_blocks) * w.block;
+            let lo = j.saturating_sub(w.gap_blocks + w.window_blocks) * w.block;
+            let window_max = x[lo..hi.min(x.len())]
+                .iter()
+                .fold(0.0f64, |m, &v| m.max(mag(v)));
+            i >= grace && mag(x[i]) >= level && mag(x[i]) >= w.jump * window_max
+        })
+    }
+
+    /// The streaming watch (a window kept block by block, quiet stretches only counted) finds
+    /// the sample the direct criterion finds, whatever the chunks it is fed in: decaying noise
+    /// with bursts of every size and bumps just below the level, levels above and below the
+    /// tail, grace periods, short and long gaps.
+    #[test]
+    fn retrigger_watch_equals_the_direct_criterion() {
+        let mut state = 99u64;
+        let mut uniform = move || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let mut hits = 0;
+        for case in 0..80 {
+            let n = 3000 + 97 * case;
+            let mut x: Vec<f64> = (0..n)
+                .map(|i| uniform() * (-(i as f64) / 400.0).exp())
+                .collect();
+            let (window, gap) = [(400, 10), (40, 3), (100, 0), (9, 80)][case % 4];
+            let level = [1e-3, 0.01, 0.05, 0.0][(case / 4) % 4];
+            let grace = [0, 100, 1500][case % 3];
+            if case % 3 != 0 {
+                // A bump just below the level, then a burst of some size after it.
+                let bump = 300 + (case * 211) % (n - 900);
+                x[bump] = 0.9 * level;
+                let at = bump + 20 + (case * 131) % 500;
+                let size = [0.02, 0.1, 0.5, 2.0, 1.2 * level, 2.0 * level][case % 6];
+                for k in 0..40 {
+                    x[at + k] += size * (uniform() + 0.6) * (-(k as f64) / 10.0).exp();
+                }
+            }
+            if case % 7 == 0 {
+                x[n / 2] = f64::NAN;
+            }
+            let direct =
+                first_hit_direct(&RetriggerWatch::new(window, gap, 10.0), &x, level, grace);
+            hits += usize::from(direct.is_some());
+            for chunk in [1, 7, 64, 333, 1024, n] {
+                let mut w = RetriggerWatch::new(window, gap, 10.0);
+                w.restart(level, grace);
+                let mut found = None;
+                for (b, piece) in x.chunks(chunk).enumerate() {
+                    if let Some(i) = w.scan(piece) {
+                        found = Some(b * chunk + i);
+                        break;
+                    }
+                }
+                assert_eq!(found, direct, "case {case} chunk {chunk}");
+            }
+        }
+        // Both outcomes are exercised.
+        assert!((10..70).contains(&hits), "{hits} of 80 cases hit");
     }
 
     #[test]
