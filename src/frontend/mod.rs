@@ -11,6 +11,7 @@ pub mod buffered;
 pub mod goyder;
 mod hann_gain;
 pub mod iec_bands;
+mod lane_acos;
 pub mod octave_bank;
 pub(crate) mod simd;
 pub mod stft;

@@ -145,6 +145,8 @@ pub struct OctaveBankFrontEnd {
     /// (σ/fs · sin ω · Σ y cos) does not cancel, over a few periods it does.
     smooth: Vec<[f64; 2]>,
     smooth_factor: Vec<f64>,
+    /// Instruction set of the frames' arccosines.
+    isa: crate::frontend::simd::Isa,
     hop: usize,
     /// The longest group delay of the bands at their centres, s: how long the bank rings up.
     rise_s: f64,
@@ -156,6 +158,7 @@ pub struct OctaveBankFrontEnd {
     buffer: DecayBuffer,
     /// Samples of the current (forward) frame so far.
     in_frame: usize,
+    /// The last frame's band energies, and its frequencies (cosines until converted to Hz).
     energy: Vec<f64>,
     freq: Vec<f64>,
 }
@@ -232,6 +235,7 @@ impl OctaveBankFrontEnd {
             in_frame: 0,
             energy: vec![0.0; nb],
             freq: vec![f64::NAN; nb],
+            isa: crate::frontend::simd::Isa::detect(),
         })
     }
 
@@ -247,10 +251,11 @@ impl OctaveBankFrontEnd {
         self.in_frame = 0;
     }
 
-    /// Turns one frame's sums (every band) into its energies and frequencies.
+    /// Turns one frame's sums (every band) into its energies and the cosines of its frequencies
+    /// (cos 2πf/fs, NaN where unknown; [`OctaveBankFrontEnd::cosines_to_hz`] converts them,
+    /// many frames at once where it can).
     fn take_frame(&mut self, sums: &[FrameSums]) {
         let hop = self.hop as f64;
-        let to_hz = self.sample_rate_hz / (2.0 * std::f64::consts::PI);
         for ((((e, f), sm), alpha), [energy, cross, power]) in self
             .energy
             .iter_mut()
@@ -262,12 +267,18 @@ impl OctaveBankFrontEnd {
             sm[0] = alpha * sm[0] + cross;
             sm[1] = alpha * sm[1] + power;
             *f = if sm[1] > 0.0 {
-                (0.5 * sm[0] / sm[1]).clamp(-1.0, 1.0).acos() * to_hz
+                (0.5 * sm[0] / sm[1]).clamp(-1.0, 1.0)
             } else {
                 f64::NAN
             };
             *e = energy / hop;
         }
+    }
+
+    /// Frequencies in Hz from their cosines ([`OctaveBankFrontEnd::take_frame`]), in place.
+    fn cosines_to_hz(&self, cosines: &mut [f64]) {
+        let to_hz = self.sample_rate_hz / (2.0 * std::f64::consts::PI);
+        crate::frontend::lane_acos::acos_scaled_in_place(self.isa, cosines, to_hz);
     }
 
     fn emit(&self, sink: &mut dyn FrameSink) {
@@ -307,6 +318,9 @@ impl FrontEnd for OctaveBankFrontEnd {
                     .filter(samples, false, Some((first, self.hop)), &mut sums);
                 for frame in sums.chunks_exact(self.bands.len().max(1)) {
                     self.take_frame(frame);
+                    let mut freq = std::mem::take(&mut self.freq);
+                    self.cosines_to_hz(&mut freq);
+                    self.freq = freq;
                     self.emit(sink);
                 }
                 self.in_frame = (self.in_frame + samples.len()) % self.hop;
@@ -358,6 +372,7 @@ impl FrontEnd for OctaveBankFrontEnd {
             k_end = k_start;
         }
         self.sums = sums;
+        self.cosines_to_hz(&mut freqs);
         super::emit_band_frames(sink, &frames, &freqs, &band_frames);
         self.clear_filters();
         self.buffer.give_back(buffer);
