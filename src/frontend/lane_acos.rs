@@ -10,9 +10,12 @@
 
 use super::simd::Isa;
 
-const PIO2_HI: f64 = 1.570_796_326_794_896_558;
+// fdlibm's constants with its published digits (each parses to the f64 fdlibm intends).
+const PIO2_HI: f64 = std::f64::consts::FRAC_PI_2;
+#[allow(clippy::excessive_precision)]
 const PIO2_LO: f64 = 6.123_233_995_736_766_036e-17;
 const PI: f64 = std::f64::consts::PI;
+#[allow(clippy::excessive_precision)]
 const PS: [f64; 6] = [
     1.666_666_666_666_666_574e-1,
     -3.255_658_186_224_009_154e-1,
@@ -21,6 +24,7 @@ const PS: [f64; 6] = [
     7.915_349_942_898_145_322e-4,
     3.479_331_075_960_211_676e-5,
 ];
+#[allow(clippy::excessive_precision)]
 const QS: [f64; 4] = [
     -2.403_394_911_734_414_219,
     2.020_945_760_233_505_695,
