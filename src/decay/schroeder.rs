@@ -160,13 +160,15 @@ impl DecayEstimator for OnlineSchroeder {
     }
 
     fn reserve_frames(&mut self, frames: usize) {
+        take_spare_history(&mut self.energies);
+        take_spare_history(&mut self.frequencies_hz);
         self.energies.reserve(frames);
         self.frequencies_hz.reserve(frames);
     }
 
     fn release(&mut self) {
-        self.energies = Vec::new();
-        self.frequencies_hz = Vec::new();
+        give_back_history(std::mem::take(&mut self.energies));
+        give_back_history(std::mem::take(&mut self.frequencies_hz));
         self.running = CompensatedSum::default();
     }
 
@@ -176,6 +178,46 @@ impl DecayEstimator for OnlineSchroeder {
 
     fn decay_energies(&self) -> &[f64] {
         &self.energies[self.start_frame()..]
+    }
+}
+
+thread_local! {
+    /// Frame histories that finished decays gave back on this thread, for the next decay of any
+    /// channel: the memory stays with the process and its pages stay mapped (freeing them let
+    /// the allocator return them, and a stream of short decays faulted them in again each time).
+    static SPARE_HISTORIES: std::cell::RefCell<Vec<Vec<f64>>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Histories one thread keeps for reuse at most (more are freed).
+const SPARE_HISTORIES_MAX: usize = 1024;
+
+/// Keeps `history`'s memory for the next decay on this thread ([`take_spare_history`]).
+pub(crate) fn give_back_history(mut history: Vec<f64>) {
+    if history.capacity() == 0 {
+        return;
+    }
+    history.clear();
+    let _ = SPARE_HISTORIES.try_with(|spare| {
+        if let Ok(mut spare) = spare.try_borrow_mut() {
+            if spare.len() < SPARE_HISTORIES_MAX {
+                spare.push(history);
+            }
+        }
+    });
+}
+
+/// Gives `history`, if it holds no memory, the one given back last on this thread (empty).
+pub(crate) fn take_spare_history(history: &mut Vec<f64>) {
+    if history.capacity() > 0 {
+        return;
+    }
+    let spare = SPARE_HISTORIES
+        .try_with(|spare| spare.try_borrow_mut().ok().and_then(|mut s| s.pop()))
+        .ok()
+        .flatten();
+    if let Some(spare) = spare {
+        *history = spare;
     }
 }
 

@@ -156,18 +156,22 @@ impl<E: DecayEstimator> BandTrackers<E> {
         self.cumulative.iter_mut().for_each(|c| c.reserve(frames));
     }
 
-    /// Like [`BandTrackers::reset`], and gives the histories' memory back: a long decay's
-    /// frames are megabytes per channel, reused by the next channel to finish.
+    /// Like [`BandTrackers::reset`], and gives the histories' memory back to this thread: a long
+    /// decay's frames are megabytes per channel, reused by the next decay of any channel.
     pub(super) fn release(&mut self) {
         self.reset();
         self.estimators.iter_mut().for_each(|e| e.release());
-        self.cumulative.iter_mut().for_each(|c| {
-            *c = vec![0.0];
-        });
+        for c in &mut self.cumulative {
+            crate::decay::schroeder::give_back_history(std::mem::replace(c, vec![0.0]));
+        }
     }
 
     pub(super) fn reset(&mut self) {
-        self.estimators.iter_mut().for_each(|e| e.reset());
+        self.estimators.iter_mut().for_each(|e| {
+            e.reset();
+            // A released history takes memory given back earlier on this thread.
+            e.reserve_frames(0);
+        });
         self.peak.iter_mut().for_each(|p| *p = 0.0);
         self.cumulative.iter_mut().for_each(|c| c.truncate(1));
         self.frames = 0;
