@@ -314,7 +314,7 @@ impl ChannelAnalyzer {
         }
         let onset_s = onset_index as f64 / self.sample_rate_hz;
         out.extend(self.rows_for(onset_index, Some(onset_s), estimates));
-        // The frame histories are done with: their memory goes to the next channel to finish.
+        // The frame histories are done with: their memory goes to the next decay on this thread.
         self.trackers.release();
         self.decays += 1;
         self.state = State::Searching;

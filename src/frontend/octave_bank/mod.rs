@@ -23,6 +23,7 @@ use rustfft::num_complex::Complex;
 use kernel::{FrameSums, Kernel};
 
 use super::buffered::{DecayBuffer, FilterDirection};
+use super::simd::Isa;
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
 use crate::error::{Error, Result};
 
@@ -146,7 +147,7 @@ pub struct OctaveBankFrontEnd {
     smooth: Vec<[f64; 2]>,
     smooth_factor: Vec<f64>,
     /// Instruction set of the frames' arccosines.
-    isa: crate::frontend::simd::Isa,
+    isa: Isa,
     hop: usize,
     /// The longest group delay of the bands at their centres, s: how long the bank rings up.
     rise_s: f64,
@@ -235,7 +236,7 @@ impl OctaveBankFrontEnd {
             in_frame: 0,
             energy: vec![0.0; nb],
             freq: vec![f64::NAN; nb],
-            isa: crate::frontend::simd::Isa::detect(),
+            isa: Isa::detect(),
         })
     }
 
@@ -276,9 +277,9 @@ impl OctaveBankFrontEnd {
     }
 
     /// Frequencies in Hz from their cosines ([`OctaveBankFrontEnd::take_frame`]), in place.
-    fn cosines_to_hz(&self, cosines: &mut [f64]) {
-        let to_hz = self.sample_rate_hz / (2.0 * std::f64::consts::PI);
-        crate::frontend::lane_acos::acos_scaled_in_place(self.isa, cosines, to_hz);
+    fn cosines_to_hz(isa: Isa, sample_rate_hz: f64, cosines: &mut [f64]) {
+        let to_hz = sample_rate_hz / (2.0 * std::f64::consts::PI);
+        crate::frontend::lane_acos::acos_scaled_in_place(isa, cosines, to_hz);
     }
 
     fn emit(&self, sink: &mut dyn FrameSink) {
@@ -318,9 +319,7 @@ impl FrontEnd for OctaveBankFrontEnd {
                     .filter(samples, false, Some((first, self.hop)), &mut sums);
                 for frame in sums.chunks_exact(self.bands.len().max(1)) {
                     self.take_frame(frame);
-                    let mut freq = std::mem::take(&mut self.freq);
-                    self.cosines_to_hz(&mut freq);
-                    self.freq = freq;
+                    Self::cosines_to_hz(self.isa, self.sample_rate_hz, &mut self.freq);
                     self.emit(sink);
                 }
                 self.in_frame = (self.in_frame + samples.len()) % self.hop;
@@ -372,7 +371,7 @@ impl FrontEnd for OctaveBankFrontEnd {
             k_end = k_start;
         }
         self.sums = sums;
-        self.cosines_to_hz(&mut freqs);
+        Self::cosines_to_hz(self.isa, self.sample_rate_hz, &mut freqs);
         super::emit_band_frames(sink, &frames, &freqs, &band_frames);
         self.clear_filters();
         self.buffer.give_back(buffer);

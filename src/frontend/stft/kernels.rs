@@ -77,11 +77,12 @@ const SUM_LANES: usize = 8;
 
 /// One band's energy Σ weights[i]·power[i] and its strongest bin among `weighted` (positions in
 /// `power`, first on a tie; `None` when none has positive power). `weighted` must be exactly the
-/// bins of positive weight (as [`super::band_weights`] makes them). One pass: the sum and the
-/// maximum (with its position) run in independent lanes, so the sum may differ from the serial
-/// sum in the last bits; the maximum and its position are exact. (A serial chain cost one add
-/// latency per bin, and separate passes for the sum, the maximum and its position made this
-/// the largest per-frame cost after the FFT at 48 kHz.)
+/// bins of positive weight (as [`super::band_weights`] makes them). The sum and the
+/// maximum run in one pass of independent lanes, so the sum may differ from the serial sum in
+/// the last bits; the maximum is exact, and its first position is found by a short scan of the
+/// band's bins (still in the cache). (A serial chain cost one add latency per bin, and separate
+/// passes for the sum and the maximum made this the largest per-frame cost after the FFT at
+/// 48 kHz.)
 pub(super) fn band_energy_and_peak(
     isa: Isa,
     power: &[f64],

@@ -335,23 +335,33 @@ fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R {
     })
 }
 
+/// A table shared by every front end of the process, one entry per key.
+type SharedTables<K, V> = std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<K, V>>>;
+
+/// The entry of `key` in `tables`, made by `make` the first time (made afresh, unshared, if a
+/// panic elsewhere poisoned the lock).
+fn shared<K: Eq + std::hash::Hash, V: Clone>(
+    tables: &SharedTables<K, V>,
+    key: K,
+    make: impl FnOnce() -> V,
+) -> V {
+    match tables.get_or_init(Default::default).lock() {
+        Ok(mut cache) => cache.entry(key).or_insert_with(make).clone(),
+        Err(_) => make(),
+    }
+}
+
 /// The periodic Hann window of `len` samples, made once per length in the process.
 fn shared_hann(len: usize) -> Arc<[f64]> {
-    static WINDOWS: std::sync::OnceLock<
-        std::sync::Mutex<std::collections::HashMap<usize, Arc<[f64]>>>,
-    > = std::sync::OnceLock::new();
-    let make = || -> Arc<[f64]> {
+    static WINDOWS: SharedTables<usize, Arc<[f64]>> = std::sync::OnceLock::new();
+    shared(&WINDOWS, len, || {
         (0..len)
             .map(|i| {
                 let s = (std::f64::consts::PI * i as f64 / len as f64).sin();
                 s * s
             })
             .collect()
-    };
-    match WINDOWS.get_or_init(Default::default).lock() {
-        Ok(mut cache) => cache.entry(len).or_insert_with(make).clone(),
-        Err(_) => make(),
-    }
+    })
 }
 
 /// FFT plans are shared by every front end of the process (one per length): planning costs more
@@ -381,14 +391,7 @@ fn shared_complex_plan(nfft: usize) -> Arc<dyn rustfft::Fft<f64>> {
 /// The bins and weights of `bands`, made once per transform and band set in the process.
 fn shared_band_bins(bands: &[Band], bin_hz: f64, n_bins: usize) -> Arc<[BandBins]> {
     type Key = (u64, usize, Vec<(u64, u64)>);
-    type Cache = std::sync::Mutex<std::collections::HashMap<Key, Arc<[BandBins]>>>;
-    static CACHE: std::sync::OnceLock<Cache> = std::sync::OnceLock::new();
-    let make = || -> Arc<[BandBins]> {
-        bands
-            .iter()
-            .map(|b| band_weights(b, bin_hz, n_bins))
-            .collect()
-    };
+    static TABLES: SharedTables<Key, Arc<[BandBins]>> = std::sync::OnceLock::new();
     let key: Key = (
         bin_hz.to_bits(),
         n_bins,
@@ -397,10 +400,12 @@ fn shared_band_bins(bands: &[Band], bin_hz: f64, n_bins: usize) -> Arc<[BandBins
             .map(|b| (b.lo_hz.to_bits(), b.hi_hz.to_bits()))
             .collect(),
     );
-    match CACHE.get_or_init(Default::default).lock() {
-        Ok(mut cache) => cache.entry(key).or_insert_with(make).clone(),
-        Err(_) => make(),
-    }
+    shared(&TABLES, key, || {
+        bands
+            .iter()
+            .map(|b| band_weights(b, bin_hz, n_bins))
+            .collect()
+    })
 }
 
 /// Bin weights of `band`: the fraction of each bin's extent inside the band.
@@ -547,9 +552,8 @@ impl FrontEnd for StftFrontEnd {
     }
 
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
-        // It depends only on the transform and the two ranges, and every channel of a run asks
-        // for the same few: computed once per process (66 band sums of hundreds of bins each
-        // were a third of a short run's time).
+        // It depends only on the transform and the two ranges, and every channel asks for the
+        // same few: once per process (its 66 band sums were a third of a short run's time).
         let b = &self.bands[band];
         let key = FlatGainKey([
             self.sample_rate_hz.to_bits(),
@@ -571,8 +575,7 @@ impl FrontEnd for StftFrontEnd {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 struct FlatGainKey([u64; 7]);
 
-/// Flat gains kept at most (a run asks for a few per pair of bands; beyond this they are
-/// computed each time).
+/// Flat gains kept at most (a run asks for a few per pair of bands; beyond, computed anew).
 const FLAT_GAIN_MEMO_ENTRIES: usize = 1 << 16;
 
 /// The flat gain of `key`, computed by `compute` the first time in the process.

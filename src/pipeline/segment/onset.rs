@@ -290,6 +290,15 @@ impl RetriggerWatch {
         self.maxima[wrap(self.ring_head + self.maxima.len() - back, self.maxima.len())]
     }
 
+    /// Closed block `k` enters the window (the earlier blocks it outweighs leave the queue).
+    fn enter_window(&mut self, k: u64) {
+        let m = self.block_maximum(k);
+        while self.queue.back().is_some_and(|&(_, v)| v <= m) {
+            self.queue.pop_back();
+        }
+        self.queue.push_back((k, m));
+    }
+
     /// Closes the current block: its maximum enters the ring; while the window is kept live,
     /// the block `gap_blocks` back enters it and blocks older than the window leave it.
     fn close_block(&mut self) {
@@ -303,11 +312,7 @@ impl RetriggerWatch {
         }
         let gap = self.gap_blocks as u64;
         if let Some(k) = (self.block_index - 1).checked_sub(gap) {
-            let m = self.block_maximum(k);
-            while self.queue.back().is_some_and(|&(_, v)| v <= m) {
-                self.queue.pop_back();
-            }
-            self.queue.push_back((k, m));
+            self.enter_window(k);
         }
         let oldest = self
             .block_index
@@ -318,8 +323,7 @@ impl RetriggerWatch {
         self.threshold = self.jump * self.queue.front().map_or(0.0, |&(_, m)| m);
     }
 
-    /// `jump` × the window's maximum for the current block, the window rebuilt from the ring
-    /// if it was not kept live.
+    /// `jump` × the window's maximum for the current block (the window rebuilt if not live).
     fn current_threshold(&mut self) -> f64 {
         if !self.live {
             self.queue.clear();
@@ -327,11 +331,7 @@ impl RetriggerWatch {
             let window_end = b.saturating_sub(self.gap_blocks as u64);
             let window_start = b.saturating_sub((self.gap_blocks + self.window_blocks) as u64);
             for k in window_start..window_end {
-                let m = self.block_maximum(k);
-                while self.queue.back().is_some_and(|&(_, v)| v <= m) {
-                    self.queue.pop_back();
-                }
-                self.queue.push_back((k, m));
+                self.enter_window(k);
             }
             self.threshold = self.jump * self.queue.front().map_or(0.0, |&(_, m)| m);
             self.live = true;
