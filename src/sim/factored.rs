@@ -25,6 +25,14 @@ pub enum FrfSolve {
     },
     /// A dense LU of the reduced dynamic stiffness at every frequency.
     PerFrequencyLu,
+    /// The interface form ([`super::interface`]): modal terms summed onto the viscoelastic
+    /// regions' interface and one LU of it per frequency.
+    Interface {
+        /// Interface dofs (size of the per-frequency LU).
+        interface_dofs: usize,
+        /// Modal coordinates eliminated onto the interface.
+        modes: usize,
+    },
 }
 
 impl std::fmt::Display for FrfSolve {
@@ -33,6 +41,13 @@ impl std::fmt::Display for FrfSolve {
             FrfSolve::Modal => write!(f, "modal superposition"),
             FrfSolve::StateSpace { states } => write!(f, "state space of {states} states"),
             FrfSolve::PerFrequencyLu => write!(f, "dense LU per frequency"),
+            FrfSolve::Interface {
+                interface_dofs,
+                modes,
+            } => write!(
+                f,
+                "interface form ({interface_dofs} interface dofs, {modes} modes)"
+            ),
         }
     }
 }

@@ -8,6 +8,7 @@ pub mod error;
 pub mod factored;
 pub mod frf;
 pub mod impulse;
+pub mod interface;
 pub mod limits;
 pub mod mesh;
 pub mod model;

@@ -190,7 +190,9 @@ pub fn static_displacement(sys: &FeSystem) -> Result<Vec<f64>, FrfError> {
 
 /// A copy of a stiffness term without its matrix (a 0 × 0 placeholder): only its frequency
 /// factor s_r(ω) is needed once the matrix has been projected.
-fn factor_only(t: &super::system::StiffnessTerm) -> Result<super::system::StiffnessTerm, FrfError> {
+pub(crate) fn factor_only(
+    t: &super::system::StiffnessTerm,
+) -> Result<super::system::StiffnessTerm, FrfError> {
     Ok(super::system::StiffnessTerm {
         name: t.name.clone(),
         matrix: SparseColMat::try_new_from_triplets(0, 0, &[]).map_err(|e| {
@@ -207,7 +209,7 @@ fn factor_only(t: &super::system::StiffnessTerm) -> Result<super::system::Stiffn
 
 /// Solves A q = b by a dense partial-pivoting LU in place, single-threaded (the callers already
 /// run one frequency per thread; nested parallelism would oversubscribe the cores).
-fn lu_solve_sequential(a: &mut Mat<c64>, b: MatRef<'_, c64>) -> Vec<c64> {
+pub(crate) fn lu_solve_sequential(a: &mut Mat<c64>, b: MatRef<'_, c64>) -> Vec<c64> {
     use faer::dyn_stack::{MemBuffer, MemStack};
     use faer::linalg::lu::partial_pivoting::{factor, solve};
     let m = a.nrows();

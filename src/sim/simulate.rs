@@ -10,11 +10,12 @@ use super::error::SimError;
 use super::factored::FactoredFrf;
 use super::frf::{direct_frf, Frf, FrfError};
 use super::impulse::impulse_response;
+use super::interface::{build as build_interface, partition};
 use super::limits::ModelSize;
 use super::model::{Excitation, Model};
 use super::reduced::{BasisOptions, ReducedModel, ReducedSolve};
 use super::stream::{streamed_bytes, SimulatedSource};
-use super::substructure::craig_bampton_vectors;
+use super::substructure::{craig_bampton_vectors, DENSE_INTERIOR_MAX_DOFS};
 use super::system::{FeSystem, SensorWeights};
 use super::truncation::{truncated_factored_frf, ModalDamping};
 use crate::source::noise::GaussianNoise;
@@ -352,6 +353,9 @@ fn frf_parts(
             }
             let cutoff_hz = opts.mode_cutoff_factor * fmax_hz;
             if modes.is_none() {
+                if let Some(done) = interface_form(sys, &freqs, cutoff_hz, &mut timings, pb)? {
+                    return Ok(done);
+                }
                 pb.set_message("modes (Craig–Bampton)");
                 let t = Instant::now();
                 if let Some(cb) = craig_bampton_vectors(sys, fmax_hz, cutoff_hz)? {
@@ -409,6 +413,36 @@ fn frf_parts(
     };
     pb.inc(1);
     Ok((parts, modes_used, timings))
+}
+
+/// The fast FRF in the interface form ([`super::interface`]) when the system has its structure
+/// (viscoelastic regions with interiors, no Rayleigh damping, one constant loss factor), with
+/// the modes it used; `None` otherwise.
+fn interface_form(
+    sys: &FeSystem,
+    freqs: &[f64],
+    cutoff_hz: f64,
+    timings: &mut Timings,
+    pb: &indicatif::ProgressBar,
+) -> Result<Option<(FrfParts, usize, Timings)>, SimError> {
+    let Ok(part) = partition(sys, DENSE_INTERIOR_MAX_DOFS) else {
+        return Ok(None);
+    };
+    pb.set_message("modes (interface form)");
+    let Some((model, built, _)) = build_interface(sys, &part, cutoff_hz, false)? else {
+        return Ok(None);
+    };
+    timings.modes_s = built.modes_s;
+    timings.reduction_s = built.reduction_s;
+    pb.inc(2);
+    pb.set_message("fast FRF (interface form)");
+    let t = Instant::now();
+    let f = model.factored_frf(freqs)?;
+    timings.frf_s = t.elapsed().as_secs_f64();
+    timings.frf_solve = Some(f.solve);
+    pb.inc(1);
+    let used = model.basis_size() - model.interface_dofs;
+    Ok(Some((FrfParts::Factored(f), used, timings.clone())))
 }
 
 /// The reduction `build` (timed as `reduction_s`) and its fast FRF (timed as `frf_s`), with

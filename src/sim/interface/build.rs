@@ -1,0 +1,275 @@
+//! Building the interface form of a system (see the parent module): the basis
+//! [Ψ | Ξ | Φ_I] and the interface matrices it projects to.
+
+use std::time::Instant;
+
+use faer::linalg::solvers::Solve;
+use faer::sparse::SparseColMat;
+use faer::{Mat, MatRef, Side};
+
+use super::super::eigen::{check_modes, lowest_modes, ModeRequest, Modes};
+use super::super::frf::FrfError;
+use super::super::reduced::{factor_only, m_orthonormalise_columns, spmm, static_solver};
+use super::super::substructure::{interior_modes, with_massless_interiors, MODE_CHECK_TOLERANCE};
+use super::super::system::FeSystem;
+use super::super::SimError;
+use super::partition::Partition;
+use super::{InterfaceModel, ModalGroup};
+
+/// Wall-clock time of the building steps, s.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BuildTimings {
+    /// Modes of the structure with massless interiors (Lanczos) and of every interior (dense).
+    pub modes_s: f64,
+    /// Static shapes, the plate's modes with the interface held, projections.
+    pub reduction_s: f64,
+}
+
+/// The basis of the interface form over the free dofs, kept only for checks (tests compare
+/// the interface solve with a dense Galerkin solve on it).
+pub struct InterfaceBasis {
+    /// Ψ (n × r): the static response to a unit displacement of each interface dof.
+    pub interface_shapes: Mat<f64>,
+    /// Ξ (n × n_ζ): the plate's modes with the interface held, zero on the interface and the
+    /// interiors, M-orthonormal.
+    pub plate_modes: Mat<f64>,
+    /// Φ_I of every region (n × n_r), zero outside its interior.
+    pub interior_modes: Vec<Mat<f64>>,
+}
+
+/// A sparse matrix times each of `cols`' columns, as Ψᵀ A Ψ-style products: `left`ᵀ (A `right`).
+fn project(
+    left: MatRef<'_, f64>,
+    a: &SparseColMat<usize, f64>,
+    right: MatRef<'_, f64>,
+) -> Mat<f64> {
+    let ar = spmm(a, right);
+    left.transpose() * &ar
+}
+
+/// The interface form of `sys` on `part`: modes of the structure with massless interiors below
+/// `cutoff_hz` (free-interface modes), every interior's modes with mass, the static shapes of
+/// the interface and of the load. `None` when the modes with massless interiors fail their
+/// residual check ([`MODE_CHECK_TOLERANCE`]).
+pub fn build(
+    sys: &FeSystem,
+    part: &Partition,
+    cutoff_hz: f64,
+    keep_basis: bool,
+) -> Result<Option<(InterfaceModel, BuildTimings, Option<InterfaceBasis>)>, SimError> {
+    let mut timings = BuildTimings::default();
+    let n = sys.n_free;
+    let r = part.interface.len();
+    let t = Instant::now();
+    let massless = with_massless_interiors(sys, &part.interiors)?;
+    let free_modes = lowest_modes(&massless, ModeRequest::BelowHz(cutoff_hz))?;
+    let (residual, orthogonality) = check_modes(&massless, &free_modes)?;
+    let suspect = |x: f64| x.is_nan() || x > MODE_CHECK_TOLERANCE;
+    if suspect(residual) || suspect(orthogonality) {
+        return Ok(None);
+    }
+    drop(massless);
+    let interiors: Vec<Modes> = part
+        .interiors
+        .iter()
+        .map(|ri| interior_modes(sys, ri, f64::INFINITY))
+        .collect::<Result<_, _>>()?;
+    timings.modes_s = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let llt = static_solver(sys)?;
+    // Ψ = K₀⁻¹ P_Γᵀ (P_Γ K₀⁻¹ P_Γᵀ)⁻¹: unit interface displacements, statically continued
+    let mut flex = Mat::<f64>::zeros(n, r);
+    for (k, &d) in part.interface.iter().enumerate() {
+        flex[(d, k)] = 1.0;
+    }
+    llt.solve_in_place(flex.as_mut());
+    let flex_interface = Mat::from_fn(r, r, |i, j| {
+        0.5 * (flex[(part.interface[i], j)] + flex[(part.interface[j], i)])
+    });
+    let flex_llt = flex_interface
+        .llt(Side::Lower)
+        .map_err(|e| FrfError::Factorisation {
+            what: "interface flexibility".into(),
+            message: format!("{e:?}"),
+        })?;
+    let mut psi_t = flex.transpose().to_owned();
+    drop(flex);
+    flex_llt.solve_in_place(psi_t.as_mut());
+    let mut psi = psi_t.transpose().to_owned();
+    drop(psi_t);
+    for (k, &d) in part.interface.iter().enumerate() {
+        for j in 0..r {
+            psi[(d, j)] = if j == k { 1.0 } else { 0.0 };
+        }
+    }
+    // the plate's modes with the interface held: the free-interface modes and the static load
+    // response without their interface traces, M-orthonormalised, then diagonalised
+    let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
+    let statics = llt.solve(f.as_ref());
+    drop(llt);
+    let nb = free_modes.shapes.ncols();
+    let mut cand = Mat::from_fn(n, nb + 1, |i, j| {
+        if j < nb {
+            free_modes.shapes[(i, j)]
+        } else {
+            statics[(i, 0)]
+        }
+    });
+    drop(free_modes);
+    let trace = Mat::from_fn(r, nb + 1, |k, j| cand[(part.interface[k], j)]);
+    cand -= &psi * &trace;
+    for d in (0..n).filter(|&d| part.interface_index[d].is_some() || part.in_interior[d]) {
+        for j in 0..nb + 1 {
+            cand[(d, j)] = 0.0;
+        }
+    }
+    let empty = Mat::<f64>::zeros(n, 0);
+    let held = m_orthonormalise_columns(&sys.mass, empty.as_ref(), empty.as_ref(), cand)?;
+    let constant_terms: Vec<usize> = (0..sys.stiffness_terms.len())
+        .filter(|&t| sys.stiffness_terms[t].sls.is_none())
+        .collect();
+    let mut k_held = Mat::<f64>::zeros(held.ncols(), held.ncols());
+    for &t in &constant_terms {
+        k_held += project(held.as_ref(), &sys.stiffness_terms[t].matrix, held.as_ref());
+    }
+    let k_held = Mat::from_fn(k_held.nrows(), k_held.ncols(), |i, j| {
+        0.5 * (k_held[(i, j)] + k_held[(j, i)])
+    });
+    let evd = k_held
+        .self_adjoint_eigen(Side::Lower)
+        .map_err(|e| FrfError::Factorisation {
+            what: "plate modes with the interface held".into(),
+            message: format!("{e:?}"),
+        })?;
+    let nu: Vec<f64> = evd.S().column_vector().iter().copied().collect();
+    let xi = &held * evd.U();
+    drop(held);
+
+    let m_psi = spmm(&sys.mass, psi.as_ref());
+    let mass = psi.transpose() * &m_psi;
+    let mut plate_stiffness = Mat::<f64>::zeros(r, r);
+    for &t in &constant_terms {
+        plate_stiffness += project(psi.as_ref(), &sys.stiffness_terms[t].matrix, psi.as_ref());
+    }
+    let mut groups = vec![ModalGroup {
+        coupling: m_psi.transpose() * &xi,
+        eigenvalues: nu,
+        load: (0..xi.ncols())
+            .map(|j| (0..n).map(|i| xi[(i, j)] * sys.force[i]).sum())
+            .collect(),
+        factor: factor_only(constant_factor_term(sys))?,
+    }];
+    let mut region_stiffness = Vec::new();
+    for (ri, modes) in part.interiors.iter().zip(&interiors) {
+        let term = &sys.stiffness_terms[ri.term];
+        region_stiffness.push((
+            factor_only(term)?,
+            project(psi.as_ref(), &term.matrix, psi.as_ref()),
+        ));
+        let m_psi_interior = Mat::from_fn(ri.dofs.len(), r, |i, k| m_psi[(ri.dofs[i], k)]);
+        groups.push(ModalGroup {
+            coupling: m_psi_interior.transpose() * &modes.shapes,
+            eigenvalues: modes
+                .frequencies_hz
+                .iter()
+                .map(|f| (2.0 * std::f64::consts::PI * f).powi(2))
+                .collect(),
+            load: vec![0.0; modes.shapes.ncols()],
+            factor: factor_only(term)?,
+        });
+    }
+    drop(m_psi);
+    let load: Vec<f64> = (0..r)
+        .map(|k| (0..n).map(|i| psi[(i, k)] * sys.force[i]).sum())
+        .collect();
+    let weights = sensor_weights(sys, part, &psi, &xi, &interiors);
+    timings.reduction_s = t.elapsed().as_secs_f64();
+    let basis = keep_basis.then(|| InterfaceBasis {
+        interior_modes: part
+            .interiors
+            .iter()
+            .zip(&interiors)
+            .map(|(ri, m)| {
+                let mut full = Mat::<f64>::zeros(n, m.shapes.ncols());
+                for (i, &d) in ri.dofs.iter().enumerate() {
+                    for c in 0..m.shapes.ncols() {
+                        full[(d, c)] = m.shapes[(i, c)];
+                    }
+                }
+                full
+            })
+            .collect(),
+        interface_shapes: psi,
+        plate_modes: xi,
+    });
+    let model = InterfaceModel {
+        interface_dofs: r,
+        plate_stiffness,
+        region_stiffness,
+        mass: symmetric(mass),
+        groups,
+        load,
+        weights,
+        sensor_ids: sys.sensors.iter().map(|s| s.id.clone()).collect(),
+    };
+    Ok(Some((model, timings, basis)))
+}
+
+/// (A + Aᵀ)/2.
+fn symmetric(a: Mat<f64>) -> Mat<f64> {
+    Mat::from_fn(a.nrows(), a.ncols(), |i, j| 0.5 * (a[(i, j)] + a[(j, i)]))
+}
+
+/// The first frequency-independent term (all share one factor, see the partition), or the
+/// first term when every term is viscoelastic.
+fn constant_factor_term(sys: &FeSystem) -> &super::super::system::StiffnessTerm {
+    sys.stiffness_terms
+        .iter()
+        .find(|t| t.sls.is_none())
+        .unwrap_or(&sys.stiffness_terms[0])
+}
+
+/// Sensor rows of the basis [Ψ | Ξ | Φ_I of every region] (sensor × basis vector).
+fn sensor_weights(
+    sys: &FeSystem,
+    part: &Partition,
+    psi: &Mat<f64>,
+    xi: &Mat<f64>,
+    interiors: &[Modes],
+) -> Mat<f64> {
+    let r = psi.ncols();
+    let nz = xi.ncols();
+    let total = r + nz + interiors.iter().map(|m| m.shapes.ncols()).sum::<usize>();
+    // local index of each interior dof in its region
+    let mut local = vec![None; sys.n_free];
+    for (g, ri) in part.interiors.iter().enumerate() {
+        for (i, &d) in ri.dofs.iter().enumerate() {
+            local[d] = Some((g, i));
+        }
+    }
+    let mut offsets = Vec::new();
+    let mut at = r + nz;
+    for m in interiors {
+        offsets.push(at);
+        at += m.shapes.ncols();
+    }
+    let mut w = Mat::<f64>::zeros(sys.sensors.len(), total);
+    for (s, sensor) in sys.sensors.iter().enumerate() {
+        for &(d, wt) in &sensor.weights {
+            for k in 0..r {
+                w[(s, k)] += wt * psi[(d, k)];
+            }
+            for j in 0..nz {
+                w[(s, r + j)] += wt * xi[(d, j)];
+            }
+            if let Some((g, i)) = local[d] {
+                let shapes = &interiors[g].shapes;
+                for c in 0..shapes.ncols() {
+                    w[(s, offsets[g] + c)] += wt * shapes[(i, c)];
+                }
+            }
+        }
+    }
+    w
+}
