@@ -59,6 +59,7 @@ mod resynth_cli;
 mod schroeder_oracle;
 mod sim_frf;
 mod sim_frf_impulse;
+mod sim_interface;
 mod sim_modes;
 mod sim_modes_cli;
 mod sim_modes_element;

@@ -38,12 +38,14 @@
 //! linear solid, a structural loss) is exact; Rayleigh damping and regions of different
 //! constant loss are not supported here (the caller falls back to [`super::reduced`]).
 
+mod blocks;
 mod build;
 mod partition;
 mod sweep;
 
 pub use build::{build, BuildTimings, InterfaceBasis};
 pub use partition::{partition, NotApplicable, Partition};
+pub use sweep::ModalSums;
 
 use faer::Mat;
 
