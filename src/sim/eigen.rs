@@ -16,6 +16,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Side};
 
 use super::assembly::sparse_from_triplets;
 use super::error::SimError;
+use super::spmm::sparse_times_dense;
 use super::system::FeSystem;
 
 /// Which modes to compute.
@@ -355,18 +356,11 @@ fn refine(
         // No mode below the requested frequency: nothing to refine.
         return Ok((Vec::new(), phi));
     }
-    let mut y = Mat::<f64>::zeros(n, k);
-    for c in 0..k {
-        sparse_matvec(&system.mass, phi.col_as_slice(c), y.col_as_slice_mut(c));
-    }
+    let mut y = sparse_times_dense(&system.mass, phi.as_ref());
     drop(phi);
     llt.solve_in_place(y.as_mut());
-    let mut ky = Mat::<f64>::zeros(n, k);
-    let mut my = Mat::<f64>::zeros(n, k);
-    for c in 0..k {
-        sparse_matvec(k0, y.col_as_slice(c), ky.col_as_slice_mut(c));
-        sparse_matvec(&system.mass, y.col_as_slice(c), my.col_as_slice_mut(c));
-    }
+    let ky = sparse_times_dense(k0, y.as_ref());
+    let my = sparse_times_dense(&system.mass, y.as_ref());
     let par = faer::get_global_parallelism();
     let mut kr = Mat::<f64>::zeros(k, k);
     let mut mr = Mat::<f64>::zeros(k, k);
@@ -479,16 +473,13 @@ fn converged(
 /// max |ΦᵀMΦ − I|). At an eigenpair ‖K₀φ‖ = λ‖Mφ‖, so the first number is half of
 /// ‖K₀φ − λMφ‖/‖K₀φ‖ but stays finite for rigid-body modes.
 pub fn check_modes(system: &FeSystem, modes: &Modes) -> Result<(f64, f64), SimError> {
-    let n = system.n_free;
     let k0 = reference_stiffness(system)?;
     let m = modes.shapes.ncols();
-    let mut mphi = Mat::<f64>::zeros(n, m);
-    let mut kphi = vec![0.0; n];
+    let mphi = sparse_times_dense(&system.mass, modes.shapes.as_ref());
+    let kphi_all = sparse_times_dense(&k0, modes.shapes.as_ref());
     let mut worst_res: f64 = 0.0;
     for c in 0..m {
-        let phi = modes.shapes.col_as_slice(c);
-        sparse_matvec(&system.mass, phi, mphi.col_as_slice_mut(c));
-        sparse_matvec(&k0, phi, &mut kphi);
+        let kphi = kphi_all.col_as_slice(c);
         let lambda = (2.0 * std::f64::consts::PI * modes.frequencies_hz[c]).powi(2);
         let mp = mphi.col_as_slice(c);
         let res: f64 = kphi
@@ -497,7 +488,7 @@ pub fn check_modes(system: &FeSystem, modes: &Modes) -> Result<(f64, f64), SimEr
             .map(|(k, mv)| (k - lambda * mv).powi(2))
             .sum::<f64>()
             .sqrt();
-        let scale = dot(&kphi, &kphi).sqrt() + lambda * dot(mp, mp).sqrt();
+        let scale = dot(kphi, kphi).sqrt() + lambda * dot(mp, mp).sqrt();
         worst_res = worst_res.max(res / scale.max(f64::MIN_POSITIVE));
     }
     let mut g = Mat::<f64>::zeros(m, m);

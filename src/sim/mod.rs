@@ -16,6 +16,7 @@ pub mod poles;
 pub mod reduced;
 pub mod reduced_poles;
 pub mod simulate;
+pub mod spmm;
 pub mod state_space;
 pub mod stream;
 pub mod substructure;

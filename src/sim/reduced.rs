@@ -24,7 +24,6 @@
 
 use faer::c64;
 use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::linalg::solvers::Llt;
 use faer::sparse::{SparseColMat, Triplet};
 use faer::{Accum, Mat, MatRef, Par, Side};
@@ -133,18 +132,9 @@ pub(crate) fn k0(sys: &FeSystem) -> Result<SparseColMat<usize, f64>, FrfError> {
     })
 }
 
-/// Sparse × dense product, real.
+/// Sparse × dense product, real ([`super::spmm::sparse_times_dense`]).
 pub(super) fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    sparse_dense_matmul(
-        out.as_mut(),
-        Accum::Replace,
-        a.as_ref(),
-        b,
-        1.0,
-        faer::get_global_parallelism(),
-    );
-    out
+    super::spmm::sparse_times_dense(a, b)
 }
 
 /// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted
@@ -320,15 +310,7 @@ impl ReducedModel {
         let (n, m) = (sys.n_free, v.ncols());
         let par = faer::get_global_parallelism();
         let project = |a: &SparseColMat<usize, f64>| -> Mat<f64> {
-            let mut av = Mat::<f64>::zeros(n, m);
-            sparse_dense_matmul(
-                av.as_mut(),
-                Accum::Replace,
-                a.as_ref(),
-                v.as_ref(),
-                1.0,
-                par,
-            );
+            let av = spmm(a, v.as_ref());
             let mut out = Mat::<f64>::zeros(m, m);
             faer::linalg::matmul::matmul(
                 out.as_mut(),
