@@ -106,10 +106,10 @@ impl InterfaceModel {
                         let mut scale: f64 = 0.0;
                         for (b, wts) in beta.iter().enumerate() {
                             let p: c64 = (0..NODES).map(|l| at_nodes[l][j] * wts[l]).sum();
-                            err = err.max((p - at_freqs[b][j]).norm());
-                            scale = scale.max(at_freqs[b][j].norm());
+                            err = err.max((p - at_freqs[b][j]).norm_sqr());
+                            scale = scale.max(at_freqs[b][j].norm_sqr());
                         }
-                        err <= FAR_TOLERANCE * scale
+                        err <= FAR_TOLERANCE * FAR_TOLERANCE * scale
                     })
                     .collect(),
             );

@@ -61,67 +61,29 @@ pub fn build(
     let n = sys.n_free;
     let r = part.interface.len();
     let t = Instant::now();
-    let massless = with_massless_interiors(sys, &part.interiors)?;
-    let free_modes = lowest_modes(&massless, ModeRequest::BelowHz(cutoff_hz))?;
-    let (residual, orthogonality) = check_modes(&massless, &free_modes)?;
-    let suspect = |x: f64| x.is_nan() || x > MODE_CHECK_TOLERANCE;
-    if suspect(residual) || suspect(orthogonality) {
-        return Ok(None);
-    }
-    drop(massless);
-    let interiors: Vec<Modes> = part
-        .interiors
-        .iter()
-        .map(|ri| interior_modes(sys, ri, f64::INFINITY))
-        .collect::<Result<_, _>>()?;
-    timings.modes_s = t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
-    let llt = static_solver(sys)?;
-    // Ψ = K₀⁻¹ P_Γᵀ (P_Γ K₀⁻¹ P_Γᵀ)⁻¹: unit interface displacements, statically continued
-    let mut flex = Mat::<f64>::zeros(n, r);
-    for (k, &d) in part.interface.iter().enumerate() {
-        flex[(d, k)] = 1.0;
-    }
-    llt.solve_in_place(flex.as_mut());
-    let flex_interface = Mat::from_fn(r, r, |i, j| {
-        0.5 * (flex[(part.interface[i], j)] + flex[(part.interface[j], i)])
+    // the Lanczos solve (one core, bound by memory) beside the interiors' eigen-solves and the
+    // interface's static shapes, which do not need its modes
+    let (free_modes, statics) = std::thread::scope(|sc| {
+        let lanczos = sc.spawn(|| free_interface_modes(sys, part, cutoff_hz));
+        let statics = interface_statics(sys, part);
+        let modes = lanczos.join().unwrap_or_else(|_| {
+            Err(SimError::Eigen("the Lanczos worker panicked".into()))
+        });
+        (modes, statics)
     });
-    let flex_llt = flex_interface
-        .llt(Side::Lower)
-        .map_err(|e| FrfError::Factorisation {
-            what: "interface flexibility".into(),
-            message: format!("{e:?}"),
-        })?;
-    let mut psi_t = flex.transpose().to_owned();
-    drop(flex);
-    flex_llt.solve_in_place(psi_t.as_mut());
-    let mut psi = psi_t.transpose().to_owned();
-    drop(psi_t);
-    set_identity_trace(&mut psi, &part.interface);
-    // one step of iterative refinement: K₀Ψ must vanish off the interface (Ξ and Φ_r are
-    // uncoupled from Ψ only then); its round-off residual would couple the lowest held plate
-    // modes to the interface at ~1e-5
-    let mut residual = Mat::<f64>::zeros(n, r);
-    for t in &sys.stiffness_terms {
-        residual += spmm(&t.matrix, psi.as_ref());
-    }
-    for &d in &part.interface {
-        for j in 0..r {
-            residual[(d, j)] = 0.0;
-        }
-    }
-    llt.solve_in_place(residual.as_mut());
-    psi -= &residual;
-    let trace_error = Mat::from_fn(r, r, |k, j| residual[(part.interface[k], j)]);
-    drop(residual);
-    psi = &psi + &psi * &trace_error;
-    set_identity_trace(&mut psi, &part.interface);
+    let Some(free_modes) = free_modes? else {
+        return Ok(None);
+    };
+    let InterfaceStatics {
+        psi,
+        m_psi,
+        statics,
+        interiors,
+    } = statics?;
+    timings.modes_s = t.elapsed().as_secs_f64();
+    let t = Instant::now();
     // the plate's modes with the interface held: the free-interface modes and the static load
     // response without their interface traces, M-orthonormalised, then diagonalised
-    let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
-    let statics = llt.solve(f.as_ref());
-    drop(llt);
     let nb = free_modes.shapes.ncols();
     let mut cand = Mat::from_fn(n, nb + 1, |i, j| {
         if j < nb {
@@ -160,7 +122,6 @@ pub fn build(
     let xi = &held * evd.U();
     drop(held);
 
-    let m_psi = spmm(&sys.mass, psi.as_ref());
     let mass = psi.transpose() * &m_psi;
     let mut plate_stiffness = Mat::<f64>::zeros(r, r);
     for &t in &constant_terms {
@@ -228,6 +189,93 @@ pub fn build(
         sensor_ids: sys.sensors.iter().map(|s| s.id.clone()).collect(),
     };
     Ok(Some((model, timings, basis)))
+}
+
+/// The modes of the structure with massless interiors below `cutoff_hz`; `None` when they fail
+/// their residual check ([`MODE_CHECK_TOLERANCE`]).
+fn free_interface_modes(
+    sys: &FeSystem,
+    part: &Partition,
+    cutoff_hz: f64,
+) -> Result<Option<Modes>, SimError> {
+    let massless = with_massless_interiors(sys, &part.interiors)?;
+    let free_modes = lowest_modes(&massless, ModeRequest::BelowHz(cutoff_hz))?;
+    let (residual, orthogonality) = check_modes(&massless, &free_modes)?;
+    let suspect = |x: f64| x.is_nan() || x > MODE_CHECK_TOLERANCE;
+    Ok((!(suspect(residual) || suspect(orthogonality))).then_some(free_modes))
+}
+
+/// What the interface form needs that does not depend on the free-interface modes.
+struct InterfaceStatics {
+    /// Ψ, n × r.
+    psi: Mat<f64>,
+    /// M Ψ.
+    m_psi: Mat<f64>,
+    /// K₀⁻¹ f (n × 1).
+    statics: Mat<f64>,
+    /// Every region's interior modes (over its own dofs).
+    interiors: Vec<Modes>,
+}
+
+/// The interiors' modes with mass, the interface's static shapes Ψ (with one step of iterative
+/// refinement) and the static load response.
+fn interface_statics(sys: &FeSystem, part: &Partition) -> Result<InterfaceStatics, SimError> {
+    let n = sys.n_free;
+    let r = part.interface.len();
+    let interiors: Vec<Modes> = part
+        .interiors
+        .iter()
+        .map(|ri| interior_modes(sys, ri, f64::INFINITY))
+        .collect::<Result<_, _>>()?;
+    let llt = static_solver(sys)?;
+    // Ψ = K₀⁻¹ P_Γᵀ (P_Γ K₀⁻¹ P_Γᵀ)⁻¹: unit interface displacements, statically continued
+    let mut flex = Mat::<f64>::zeros(n, r);
+    for (k, &d) in part.interface.iter().enumerate() {
+        flex[(d, k)] = 1.0;
+    }
+    llt.solve_in_place(flex.as_mut());
+    let flex_interface = Mat::from_fn(r, r, |i, j| {
+        0.5 * (flex[(part.interface[i], j)] + flex[(part.interface[j], i)])
+    });
+    let flex_llt = flex_interface
+        .llt(Side::Lower)
+        .map_err(|e| FrfError::Factorisation {
+            what: "interface flexibility".into(),
+            message: format!("{e:?}"),
+        })?;
+    let mut psi_t = flex.transpose().to_owned();
+    drop(flex);
+    flex_llt.solve_in_place(psi_t.as_mut());
+    let mut psi = psi_t.transpose().to_owned();
+    drop(psi_t);
+    set_identity_trace(&mut psi, &part.interface);
+    // one step of iterative refinement: K₀Ψ must vanish off the interface (Ξ and Φ_r are
+    // uncoupled from Ψ only then); its round-off residual would couple the lowest held plate
+    // modes to the interface at ~1e-5
+    let mut residual = Mat::<f64>::zeros(n, r);
+    for t in &sys.stiffness_terms {
+        residual += spmm(&t.matrix, psi.as_ref());
+    }
+    for &d in &part.interface {
+        for j in 0..r {
+            residual[(d, j)] = 0.0;
+        }
+    }
+    llt.solve_in_place(residual.as_mut());
+    psi -= &residual;
+    let trace_error = Mat::from_fn(r, r, |k, j| residual[(part.interface[k], j)]);
+    drop(residual);
+    psi = &psi + &psi * &trace_error;
+    set_identity_trace(&mut psi, &part.interface);
+    let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
+    let statics = llt.solve(f.as_ref());
+    let m_psi = spmm(&sys.mass, psi.as_ref());
+    Ok(InterfaceStatics {
+        psi,
+        m_psi,
+        statics,
+        interiors,
+    })
 }
 
 /// Sets the interface rows of Ψ to the identity (they are, to round-off).

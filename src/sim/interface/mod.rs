@@ -40,6 +40,7 @@
 
 mod blocks;
 mod build;
+mod ldlt;
 mod partition;
 mod sweep;
 

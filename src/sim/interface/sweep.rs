@@ -8,7 +8,7 @@ use super::super::factored::{FactoredFrf, FrfSolve};
 use super::super::frf::{validate_frequencies, FrfError};
 use super::super::reduced::lu_solve_sequential;
 use super::blocks::BLOCK_FREQUENCIES;
-use super::InterfaceModel;
+use super::{ldlt, InterfaceModel};
 
 /// Working matrices of one thread's frequencies (allocated once per thread: allocating them per
 /// frequency would fault fresh pages in at every one). Interface matrices are kept as
@@ -20,6 +20,7 @@ pub(super) struct Scratch {
     scaled_im: Mat<f64>,
     gathered: Mat<f64>,
     z: Mat<c64>,
+    panel: Mat<c64>,
 }
 
 impl Scratch {
@@ -38,12 +39,13 @@ impl Scratch {
             scaled_im: Mat::zeros(r, widest),
             gathered: Mat::zeros(r, widest),
             z: Mat::zeros(r, r),
+            panel: Mat::zeros(r, 32),
         }
     }
 
-    /// The complex interface matrix the LU works in.
-    pub(super) fn complex_mut(&mut self) -> &mut Mat<c64> {
-        &mut self.z
+    /// The complex interface matrix the factorisation works in, and its panel scratch.
+    pub(super) fn complex_mut(&mut self) -> (&mut Mat<c64>, &mut Mat<c64>) {
+        (&mut self.z, &mut self.panel)
     }
 }
 
@@ -161,7 +163,7 @@ impl InterfaceModel {
             let all: Vec<usize> = (0..c.len()).collect();
             self.add_selected_terms(g, &all, &c, s, &mut z_re, &mut z_im);
         }
-        let out = self.finish(omega, &den, &z_re, &z_im, &mut s.z);
+        let out = self.finish(omega, &den, &z_re, &z_im, (&mut s.z, &mut s.panel));
         s.z_re = z_re;
         s.z_im = z_im;
         out
@@ -175,15 +177,13 @@ impl InterfaceModel {
         den: &[Vec<c64>],
         z_re: &[f64],
         z_im: &[f64],
-        z: &mut Mat<c64>,
+        (z, panel): (&mut Mat<c64>, &mut Mat<c64>),
     ) -> Result<Vec<c64>, FrfError> {
         let r = self.interface_dofs;
         let w2 = omega * omega;
         for j in 0..r {
             for i in j..r {
-                let v = c64::new(z_re[j * r + i], z_im[j * r + i]);
-                z[(i, j)] = v;
-                z[(j, i)] = v;
+                z[(i, j)] = c64::new(z_re[j * r + i], z_im[j * r + i]);
             }
         }
         let mut rhs = Mat::<c64>::from_fn(r, 1, |i, _| c64::new(self.load[i], 0.0));
@@ -197,7 +197,22 @@ impl InterfaceModel {
                 }
             }
         }
-        let u = lu_solve_sequential(z, rhs.as_ref());
+        let b: Vec<c64> = rhs.col(0).iter().copied().collect();
+        let mut u = b.clone();
+        let by_ldlt = ldlt::factor_in_place(z, panel) && {
+            ldlt::solve_in_place(z, &mut u);
+            ldlt::relative_residual(z_re, z_im, &u, &b) <= ldlt::RESIDUAL_TOLERANCE
+        };
+        if !by_ldlt {
+            for j in 0..r {
+                for i in j..r {
+                    let v = c64::new(z_re[j * r + i], z_im[j * r + i]);
+                    z[(i, j)] = v;
+                    z[(j, i)] = v;
+                }
+            }
+            u = lu_solve_sequential(z, rhs.as_ref());
+        }
         if u.iter().any(|x| !x.re.is_finite() || !x.im.is_finite()) {
             return Err(FrfError::Factorisation {
                 what: format!(
