@@ -66,9 +66,9 @@ pub fn build(
     let (free_modes, statics) = std::thread::scope(|sc| {
         let lanczos = sc.spawn(|| free_interface_modes(sys, part, cutoff_hz));
         let statics = interface_statics(sys, part);
-        let modes = lanczos.join().unwrap_or_else(|_| {
-            Err(SimError::Eigen("the Lanczos worker panicked".into()))
-        });
+        let modes = lanczos
+            .join()
+            .unwrap_or_else(|_| Err(SimError::Eigen("the Lanczos worker panicked".into())));
         (modes, statics)
     });
     let Some(free_modes) = free_modes? else {

@@ -9,7 +9,7 @@ use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
 use faer::{c64, Accum, Mat, Par};
 
 /// Columns per panel of the blocked factorisation.
-const PANEL: usize = 32;
+pub const PANEL: usize = 32;
 
 /// Largest ‖b − Z x‖ / (‖Z‖_max · ‖x‖_1 + ‖b‖) accepted for the LDLᵀ solution.
 pub const RESIDUAL_TOLERANCE: f64 = 1e-12;
@@ -28,14 +28,23 @@ pub fn factor_in_place(z: &mut Mat<c64>, scaled: &mut Mat<c64>) -> bool {
                 return false;
             }
             let inv = c64::new(1.0, 0.0) / d;
-            z.col_as_slice_mut(c)[c + 1..].iter_mut().for_each(|x| *x *= inv);
+            z.col_as_slice_mut(c)[c + 1..]
+                .iter_mut()
+                .for_each(|x| *x *= inv);
             // the rest of the panel: A[i, c'] −= L[i, c] d L[c', c]
             for cp in c + 1..k + nb {
                 let f = z[(cp, c)] * d;
                 let (left, right) = z.as_mut().split_at_col_mut(cp);
-                let lc = &left.col(c).try_as_col_major().expect("contiguous column").as_slice()[cp..];
+                let lc = &left
+                    .col(c)
+                    .try_as_col_major()
+                    .expect("contiguous column")
+                    .as_slice()[cp..];
                 let dst = right.col_mut(0);
-                let dst = &mut dst.try_as_col_major_mut().expect("contiguous column").as_slice_mut()[cp..];
+                let dst = &mut dst
+                    .try_as_col_major_mut()
+                    .expect("contiguous column")
+                    .as_slice_mut()[cp..];
                 for (x, &l) in dst.iter_mut().zip(lc) {
                     *x -= l * f;
                 }
@@ -130,7 +139,12 @@ mod tests {
             let mut a = Mat::<c64>::zeros(r, r);
             for j in 0..r {
                 for i in j..r {
-                    let v = c64::new(rnd(), rnd()) + if i == j { c64::new(4.0, 1.0) } else { c64::new(0.0, 0.0) };
+                    let v = c64::new(rnd(), rnd())
+                        + if i == j {
+                            c64::new(4.0, 1.0)
+                        } else {
+                            c64::new(0.0, 0.0)
+                        };
                     a[(i, j)] = v;
                     a[(j, i)] = v;
                 }

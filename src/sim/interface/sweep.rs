@@ -39,7 +39,7 @@ impl Scratch {
             scaled_im: Mat::zeros(r, widest),
             gathered: Mat::zeros(r, widest),
             z: Mat::zeros(r, r),
-            panel: Mat::zeros(r, 32),
+            panel: Mat::zeros(r, ldlt::PANEL),
         }
     }
 
