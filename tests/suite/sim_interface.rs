@@ -3,36 +3,25 @@
 
 use dampscope::sim::assembly::assemble;
 use dampscope::sim::interface::{build, partition, ModalSums};
-use dampscope::sim::model::{Model, Patch, SensorSpec};
+use dampscope::sim::model::Model;
 use dampscope::sim::substructure::DENSE_INTERIOR_MAX_DOFS;
 use dampscope::sim::Sls;
 use faer::{c64, Mat};
 
+use super::sim_simulate::{coarse_plate, patch};
+
 /// The coarse plate of the fast-vs-direct tests with the soft SLS patch (between nodes).
 fn soft_patch_plate(fmax: f64, df: f64) -> Model {
-    let mut m = Model::reference_plate();
-    m.mesh.nx = 8;
-    m.mesh.ny = 12;
-    m.mesh.nz = 2;
-    m.excitation.x = 0.5;
-    m.excitation.y = 0.75;
-    m.output.sensors = SensorSpec::Grid { nx: 9, ny: 9 };
+    let mut m = coarse_plate();
     m.output.fmax = fmax;
     m.output.df = df;
     m.material.loss_factor = 0.005;
-    m.patches.push(Patch {
-        x: [1.0, 1.5],
-        y: [1.5, 2.25],
-        youngs_modulus: None,
-        poisson: Some(0.4),
-        density: Some(1000.0),
-        loss_factor: Some(0.0),
-        sls: Some(Sls {
-            e: 4.83e6,
-            e_inf: 1.0e6,
-            eta: 6.37e3,
-        }),
-    });
+    let sls = Sls {
+        e: 4.83e6,
+        e_inf: 1.0e6,
+        eta: 6.37e3,
+    };
+    m.patches.push(patch(Some(0.0), Some(sls), true));
     m
 }
 

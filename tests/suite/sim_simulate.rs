@@ -16,7 +16,8 @@ use dampscope::sim::model::{Model, Patch, SensorSpec};
 use dampscope::sim::simulate::{simulate, simulate_system, Method, SimulateOptions};
 use dampscope::sim::Sls;
 
-fn coarse_plate() -> Model {
+/// The coarse 8 × 12 × 2 plate of the fast-vs-direct tests (sensors between nodes on the patch).
+pub(crate) fn coarse_plate() -> Model {
     let mut m = Model::reference_plate();
     m.mesh.nx = 8;
     m.mesh.ny = 12;
@@ -31,7 +32,8 @@ fn coarse_plate() -> Model {
     m
 }
 
-fn patch(loss_factor: Option<f64>, sls: Option<Sls>, soft: bool) -> Patch {
+/// The patch region of the fast-vs-direct tests: soft polymer or the plate's material.
+pub(crate) fn patch(loss_factor: Option<f64>, sls: Option<Sls>, soft: bool) -> Patch {
     Patch {
         x: [1.0, 1.5],
         y: [1.5, 2.25],
