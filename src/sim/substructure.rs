@@ -149,16 +149,22 @@ pub fn fixed_interface_modes(
     cutoff_hz: f64,
 ) -> Result<Modes, SimError> {
     let local = interior_modes(sys, interior, cutoff_hz)?;
-    let mut shapes = Mat::<f64>::zeros(sys.n_free, local.shapes.ncols());
-    for c in 0..local.shapes.ncols() {
+    Ok(Modes {
+        shapes: on_free_dofs(sys.n_free, interior, &local.shapes),
+        frequencies_hz: local.frequencies_hz,
+    })
+}
+
+/// Columns over an interior's own dofs (row i is `interior.dofs[i]`) as columns over all `n`
+/// free dofs, zero outside the interior.
+pub fn on_free_dofs(n: usize, interior: &RegionInterior, local: &Mat<f64>) -> Mat<f64> {
+    let mut full = Mat::<f64>::zeros(n, local.ncols());
+    for c in 0..local.ncols() {
         for (i, &d) in interior.dofs.iter().enumerate() {
-            shapes[(d, c)] = local.shapes[(i, c)];
+            full[(d, c)] = local[(i, c)];
         }
     }
-    Ok(Modes {
-        frequencies_hz: local.frequencies_hz,
-        shapes,
-    })
+    full
 }
 
 /// The fixed-interface modes of `interior` below `cutoff_hz` (`f64::INFINITY`: every mode with

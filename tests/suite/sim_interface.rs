@@ -5,10 +5,9 @@ use dampscope::sim::assembly::assemble;
 use dampscope::sim::interface::{build, partition, ModalSums};
 use dampscope::sim::model::Model;
 use dampscope::sim::substructure::DENSE_INTERIOR_MAX_DOFS;
-use dampscope::sim::Sls;
 use faer::{c64, Mat};
 
-use super::sim_simulate::{coarse_plate, patch};
+use super::sim_simulate::{coarse_plate, patch, soft_polymer};
 
 /// The coarse plate of the fast-vs-direct tests with the soft SLS patch (between nodes).
 fn soft_patch_plate(fmax: f64, df: f64) -> Model {
@@ -16,12 +15,7 @@ fn soft_patch_plate(fmax: f64, df: f64) -> Model {
     m.output.fmax = fmax;
     m.output.df = df;
     m.material.loss_factor = 0.005;
-    let sls = Sls {
-        e: 4.83e6,
-        e_inf: 1.0e6,
-        eta: 6.37e3,
-    };
-    m.patches.push(patch(Some(0.0), Some(sls), true));
+    m.patches.push(patch(Some(0.0), Some(soft_polymer()), true));
     m
 }
 

@@ -45,6 +45,15 @@ pub(crate) fn patch(loss_factor: Option<f64>, sls: Option<Sls>, soft: bool) -> P
     }
 }
 
+/// METHODS.md §6 "soft damping polymer": E1 = 1 MPa, E = 4.83 MPa, tanδ_max = 1 at 50 Hz.
+pub(crate) fn soft_polymer() -> Sls {
+    Sls {
+        e: 4.83e6,
+        e_inf: 1.0e6,
+        eta: 6.37e3,
+    }
+}
+
 /// Worst per-band error at the driving point, an off-patch sensor and a sensor on the patch,
 /// and how the fast method solved its reduced model.
 fn fast_vs_direct(model: &Model) -> (f64, Option<FrfSolve>) {
@@ -106,13 +115,7 @@ fn fast_equals_direct_damped_patch() {
 fn fast_equals_direct_viscoelastic_patch() {
     let mut m = coarse_plate();
     m.material.loss_factor = 0.005;
-    // METHODS.md §6 "soft damping polymer": E1 = 1 MPa, E = 4.83 MPa, tanδ_max = 1 at 50 Hz
-    let sls = Sls {
-        e: 4.83e6,
-        e_inf: 1.0e6,
-        eta: 6.37e3,
-    };
-    m.patches.push(patch(Some(0.0), Some(sls), true));
+    m.patches.push(patch(Some(0.0), Some(soft_polymer()), true));
     let (worst, solve) = fast_vs_direct(&m);
     assert!(worst < 0.01, "worst band error {worst}");
     // The interface form (the patch's interior modes eliminated onto its interface), not the

@@ -86,28 +86,31 @@ impl InterfaceModel {
             .collect();
         let den_at: Vec<Vec<Vec<c64>>> =
             omegas.iter().map(|&w| self.modal_denominators(w)).collect();
-        let den_nodes: Vec<Vec<Vec<c64>>> =
-            nodes.iter().map(|&w| self.modal_denominators(w)).collect();
+        // the sums' coefficients at every node and frequency, per group: [point][group][mode]
+        let coefficients = |w: f64, den: &[Vec<c64>]| -> Vec<Vec<c64>> {
+            den.iter().map(|d| sum_coefficients(w, d)).collect()
+        };
+        let at_nodes: Vec<Vec<Vec<c64>>> = nodes
+            .iter()
+            .map(|&w| coefficients(w, &self.modal_denominators(w)))
+            .collect();
+        let at_freqs: Vec<Vec<Vec<c64>>> = omegas
+            .iter()
+            .zip(&den_at)
+            .map(|(&w, den)| coefficients(w, den))
+            .collect();
         // which modes are far from the block, per group
         let mut far: Vec<Vec<bool>> = Vec::with_capacity(self.groups.len());
         for (g, grp) in self.groups.iter().enumerate() {
-            let at_nodes: Vec<Vec<c64>> = (0..NODES)
-                .map(|l| sum_coefficients(nodes[l], &den_nodes[l][g]))
-                .collect();
-            let at_freqs: Vec<Vec<c64>> = omegas
-                .iter()
-                .enumerate()
-                .map(|(b, &w)| sum_coefficients(w, &den_at[b][g]))
-                .collect();
             far.push(
                 (0..grp.eigenvalues.len())
                     .map(|j| {
                         let mut err: f64 = 0.0;
                         let mut scale: f64 = 0.0;
                         for (b, wts) in beta.iter().enumerate() {
-                            let p: c64 = (0..NODES).map(|l| at_nodes[l][j] * wts[l]).sum();
-                            err = err.max((p - at_freqs[b][j]).norm_sqr());
-                            scale = scale.max(at_freqs[b][j].norm_sqr());
+                            let p: c64 = (0..NODES).map(|l| at_nodes[l][g][j] * wts[l]).sum();
+                            err = err.max((p - at_freqs[b][g][j]).norm_sqr());
+                            scale = scale.max(at_freqs[b][g][j].norm_sqr());
                         }
                         err <= FAR_TOLERANCE * FAR_TOLERANCE * scale
                     })
@@ -129,13 +132,12 @@ impl InterfaceModel {
         // column-major sum at node l (lower triangle)
         let mut node_re = Mat::<f64>::zeros(r * r, NODES);
         let mut node_im = Mat::<f64>::zeros(r * r, NODES);
-        for l in 0..NODES {
+        for (l, at_node) in at_nodes.iter().enumerate() {
             for (g, cols) in &far_groups {
-                let c = sum_coefficients(nodes[l], &den_nodes[l][*g]);
                 self.add_selected_terms(
                     *g,
                     cols,
-                    &c,
+                    &at_node[*g],
                     s,
                     node_re.col_as_slice_mut(l),
                     node_im.col_as_slice_mut(l),
@@ -164,8 +166,7 @@ impl InterfaceModel {
                 let (z_re, z_im) = (comb_re.col_as_slice_mut(b), comb_im.col_as_slice_mut(b));
                 self.add_interface_base(w, z_re, z_im);
                 for (g, cols) in &near_groups {
-                    let c = sum_coefficients(w, &den_at[start + b][*g]);
-                    self.add_selected_terms(*g, cols, &c, s, z_re, z_im);
+                    self.add_selected_terms(*g, cols, &at_freqs[start + b][*g], s, z_re, z_im);
                 }
                 let (z_re, z_im) = (comb_re.col_as_slice(b), comb_im.col_as_slice(b));
                 out.push(self.finish(w, &den_at[start + b], z_re, z_im, s.complex_mut())?);

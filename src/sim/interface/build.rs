@@ -10,7 +10,9 @@ use faer::{Mat, MatRef, Side};
 use super::super::eigen::{check_modes, lowest_modes, ModeRequest, Modes};
 use super::super::frf::FrfError;
 use super::super::reduced::{factor_only, m_orthonormalise_columns, spmm, static_solver};
-use super::super::substructure::{interior_modes, with_massless_interiors, MODE_CHECK_TOLERANCE};
+use super::super::substructure::{
+    interior_modes, on_free_dofs, with_massless_interiors, MODE_CHECK_TOLERANCE,
+};
 use super::super::system::FeSystem;
 use super::super::SimError;
 use super::partition::Partition;
@@ -109,10 +111,7 @@ pub fn build(
     for &t in &constant_terms {
         k_held += project(held.as_ref(), &sys.stiffness_terms[t].matrix, held.as_ref());
     }
-    let k_held = Mat::from_fn(k_held.nrows(), k_held.ncols(), |i, j| {
-        0.5 * (k_held[(i, j)] + k_held[(j, i)])
-    });
-    let evd = k_held
+    let evd = symmetric(k_held)
         .self_adjoint_eigen(Side::Lower)
         .map_err(|e| FrfError::Factorisation {
             what: "plate modes with the interface held".into(),
@@ -165,15 +164,7 @@ pub fn build(
             .interiors
             .iter()
             .zip(&interiors)
-            .map(|(ri, m)| {
-                let mut full = Mat::<f64>::zeros(n, m.shapes.ncols());
-                for (i, &d) in ri.dofs.iter().enumerate() {
-                    for c in 0..m.shapes.ncols() {
-                        full[(d, c)] = m.shapes[(i, c)];
-                    }
-                }
-                full
-            })
+            .map(|(ri, m)| on_free_dofs(n, ri, &m.shapes))
             .collect(),
         interface_shapes: psi,
         plate_modes: xi,
