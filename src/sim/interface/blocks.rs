@@ -11,7 +11,7 @@
 //! the block ([`FAR_TOLERANCE`]), so the interpolated sum is within that tolerance of the exact
 //! one term by term ([`InterfaceModel::solve_exact`] is the oracle in the tests).
 
-use faer::{c64, Accum, Mat, Par};
+use faer::{c64, Accum, Mat, MatRef, Par};
 
 use super::super::frf::FrfError;
 use super::sweep::Scratch;
@@ -65,6 +65,29 @@ fn interpolation_weights(x: f64, nodes: &[f64], bary: &[f64]) -> Vec<f64> {
 fn sum_coefficients(omega: f64, den: &[c64]) -> Vec<c64> {
     let w4 = omega.powi(4);
     den.iter().map(|d| d * (-w4)).collect()
+}
+
+/// Columns of the interface matrices whose lower triangles one product of
+/// [`interpolate_lower`] covers.
+const COLUMN_CHUNK: usize = 16;
+
+/// dst[:, b] = Σ_l nodes[:, l] weights[l, b] on the rows of the lower triangles of r × r
+/// column-major matrices (and a few upper entries next to them; the rest of `dst` is left as
+/// it was): half the memory traffic of the full product, which is bound by it.
+fn interpolate_lower(nodes: &Mat<f64>, weights: MatRef<'_, f64>, dst: &mut Mat<f64>, r: usize) {
+    let nb = weights.ncols();
+    for j0 in (0..r).step_by(COLUMN_CHUNK) {
+        let j1 = (j0 + COLUMN_CHUNK).min(r);
+        let (row0, rows) = (j0 * r + j0, j1 * r - (j0 * r + j0));
+        faer::linalg::matmul::matmul(
+            dst.as_mut().submatrix_mut(row0, 0, rows, nb),
+            Accum::Replace,
+            nodes.as_ref().subrows(row0, rows),
+            weights,
+            1.0,
+            Par::Seq,
+        );
+    }
 }
 
 impl InterfaceModel {
@@ -149,28 +172,23 @@ impl InterfaceModel {
         let mut comb_im = Mat::<f64>::zeros(r * r, BATCH);
         for start in (0..omegas.len()).step_by(BATCH) {
             let nb = BATCH.min(omegas.len() - start);
+            let batch = &omegas[start..start + nb];
             // the interpolated far sums of a batch of frequencies: (r² × nodes)(nodes × nb)
             let weights = Mat::<f64>::from_fn(NODES, nb, |l, b| beta[start + b][l]);
-            for (dst, src) in [(&mut comb_re, &node_re), (&mut comb_im, &node_im)] {
-                faer::linalg::matmul::matmul(
-                    dst.as_mut().subcols_mut(0, nb),
-                    Accum::Replace,
-                    src.as_ref(),
-                    weights.as_ref(),
-                    1.0,
-                    Par::Seq,
-                );
-            }
-            for b in 0..nb {
-                let w = omegas[start + b];
+            interpolate_lower(&node_re, weights.as_ref(), &mut comb_re, r);
+            interpolate_lower(&node_im, weights.as_ref(), &mut comb_im, r);
+            let den = &den_at[start..start + nb];
+            let rhs = self.interface_loads(batch, den);
+            let mut us = Vec::with_capacity(nb);
+            for (b, &w) in batch.iter().enumerate() {
                 let (z_re, z_im) = (comb_re.col_as_slice_mut(b), comb_im.col_as_slice_mut(b));
-                self.add_interface_base(w, z_re, z_im);
                 for (g, cols) in &near_groups {
                     self.add_selected_terms(*g, cols, &at_freqs[start + b][*g], s, z_re, z_im);
                 }
-                let (z_re, z_im) = (comb_re.col_as_slice(b), comb_im.col_as_slice(b));
-                out.push(self.finish(w, &den_at[start + b], z_re, z_im, s.complex_mut())?);
+                self.assemble(w, z_re, z_im, &mut s.z);
+                us.push(self.solve_interface(w, &rhs[b], z_re, z_im, (&mut s.z, &mut s.panel))?);
             }
+            out.extend(self.modal_coordinates(batch, den, us));
         }
         Ok(out)
     }

@@ -19,8 +19,8 @@ pub(super) struct Scratch {
     scaled_re: Mat<f64>,
     scaled_im: Mat<f64>,
     gathered: Mat<f64>,
-    z: Mat<c64>,
-    panel: Mat<c64>,
+    pub(super) z: Mat<c64>,
+    pub(super) panel: Mat<c64>,
 }
 
 impl Scratch {
@@ -40,23 +40,6 @@ impl Scratch {
             gathered: Mat::zeros(r, widest),
             z: Mat::zeros(r, r),
             panel: Mat::zeros(r, ldlt::PANEL),
-        }
-    }
-
-    /// The complex interface matrix the factorisation works in, and its panel scratch.
-    pub(super) fn complex_mut(&mut self) -> (&mut Mat<c64>, &mut Mat<c64>) {
-        (&mut self.z, &mut self.panel)
-    }
-}
-
-/// dst[j.., j] += a · src[j.., j] for every column j: the lower triangle of an r × r
-/// column-major slice plus a multiple of a matrix's.
-pub(super) fn add_lower(dst: &mut [f64], src: &Mat<f64>, a: f64) {
-    let r = src.nrows();
-    for j in 0..r {
-        let d = &mut dst[j * r + j..(j + 1) * r];
-        for (x, y) in d.iter_mut().zip(&src.col_as_slice(j)[j..]) {
-            *x += a * y;
         }
     }
 }
@@ -92,17 +75,51 @@ impl InterfaceModel {
             .collect()
     }
 
-    /// Adds the constant and per-region terms of the interface dynamic stiffness at ω to
-    /// (`z_re`, `z_im`), lower triangles.
-    pub(super) fn add_interface_base(&self, omega: f64, z_re: &mut [f64], z_im: &mut [f64]) {
+    /// Adds the constant and per-region terms of the interface dynamic stiffness at ω to the
+    /// modal sums in (`z_re`, `z_im`) (lower triangles, column-major r × r) and writes the
+    /// result into the lower triangle of `z`. One pass per column, which stays in cache.
+    pub(super) fn assemble(
+        &self,
+        omega: f64,
+        z_re: &mut [f64],
+        z_im: &mut [f64],
+        z: &mut Mat<c64>,
+    ) {
+        let r = self.interface_dofs;
         let kc = factor(&self.groups[0].factor, omega);
-        add_lower(z_re, &self.plate_stiffness, kc.re);
-        add_lower(z_re, &self.mass, -omega * omega);
-        add_lower(z_im, &self.plate_stiffness, kc.im);
-        for (t, k) in &self.region_stiffness {
-            let kr = factor(t, omega);
-            add_lower(z_re, k, kr.re);
-            add_lower(z_im, k, kr.im);
+        let w2 = omega * omega;
+        let regions: Vec<(c64, &Mat<f64>)> = self
+            .region_stiffness
+            .iter()
+            .map(|(t, k)| (factor(t, omega), k))
+            .collect();
+        for j in 0..r {
+            let (re, im) = (
+                &mut z_re[j * r + j..(j + 1) * r],
+                &mut z_im[j * r + j..(j + 1) * r],
+            );
+            let (p, m) = (
+                &self.plate_stiffness.col_as_slice(j)[j..],
+                &self.mass.col_as_slice(j)[j..],
+            );
+            for (((x, y), &pv), &mv) in re.iter_mut().zip(im.iter_mut()).zip(p).zip(m) {
+                *x += kc.re * pv - w2 * mv;
+                *y += kc.im * pv;
+            }
+            for (kr, k) in &regions {
+                for ((x, y), &kv) in re
+                    .iter_mut()
+                    .zip(im.iter_mut())
+                    .zip(&k.col_as_slice(j)[j..])
+                {
+                    *x += kr.re * kv;
+                    *y += kr.im * kv;
+                }
+            }
+            let dst = &mut z.col_as_slice_mut(j)[j..];
+            for ((d, &x), &y) in dst.iter_mut().zip(re.iter()).zip(im.iter()) {
+                *d = c64::new(x, y);
+            }
         }
     }
 
@@ -157,51 +174,75 @@ impl InterfaceModel {
         let mut z_im = std::mem::take(&mut s.z_im);
         z_re.iter_mut().for_each(|x| *x = 0.0);
         z_im.iter_mut().for_each(|x| *x = 0.0);
-        self.add_interface_base(omega, &mut z_re, &mut z_im);
         for (g, d) in den.iter().enumerate() {
             let c: Vec<c64> = d.iter().map(|x| x * (-w4)).collect();
             let all: Vec<usize> = (0..c.len()).collect();
             self.add_selected_terms(g, &all, &c, s, &mut z_re, &mut z_im);
         }
-        let out = self.finish(omega, &den, &z_re, &z_im, (&mut s.z, &mut s.panel));
+        self.assemble(omega, &mut z_re, &mut z_im, &mut s.z);
+        let rhs = self.interface_loads(&[omega], std::slice::from_ref(&den));
+        let u = self.solve_interface(omega, &rhs[0], &z_re, &z_im, (&mut s.z, &mut s.panel));
         s.z_re = z_re;
         s.z_im = z_im;
-        out
+        let u = u?;
+        Ok(self
+            .modal_coordinates(&[omega], std::slice::from_ref(&den), vec![u])
+            .remove(0))
     }
 
-    /// Solves the assembled interface system (lower triangles of the column-major `z_re`,
-    /// `z_im`) and recovers the modal coordinates.
-    pub(super) fn finish(
+    /// The interface load f_Γ + ω² Σ_j a_j f_j/(k_g λ_j − ω²) at each of `omegas` (`den`: their
+    /// [`Self::modal_denominators`]), the modal part as one product per group over all of them.
+    pub(super) fn interface_loads(&self, omegas: &[f64], den: &[Vec<Vec<c64>>]) -> Vec<Vec<c64>> {
+        let (r, nb) = (self.interface_dofs, omegas.len());
+        let mut total = Mat::<f64>::zeros(r, 2 * nb);
+        for (g, grp) in self.groups.iter().enumerate() {
+            if grp.load.iter().all(|&f| f == 0.0) {
+                continue;
+            }
+            // column b: Re of the coefficients at ω_b, column nb + b: Im
+            let coef = Mat::<f64>::from_fn(grp.load.len(), 2 * nb, |j, c| {
+                let b = c % nb;
+                let v = den[b][g][j] * (omegas[b] * omegas[b] * grp.load[j]);
+                if c < nb {
+                    v.re
+                } else {
+                    v.im
+                }
+            });
+            faer::linalg::matmul::matmul(
+                total.as_mut(),
+                Accum::Add,
+                grp.coupling.as_ref(),
+                coef.as_ref(),
+                1.0,
+                Par::Seq,
+            );
+        }
+        (0..nb)
+            .map(|b| {
+                (0..r)
+                    .map(|i| c64::new(self.load[i] + total[(i, b)], total[(i, nb + b)]))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Solves the assembled interface system (`z`: its lower triangle, also given as the
+    /// column-major real and imaginary slices `z_re`, `z_im`) for the load `b`: LDLᵀ checked by
+    /// its residual, else the pivoting LU.
+    pub(super) fn solve_interface(
         &self,
         omega: f64,
-        den: &[Vec<c64>],
+        b: &[c64],
         z_re: &[f64],
         z_im: &[f64],
         (z, panel): (&mut Mat<c64>, &mut Mat<c64>),
     ) -> Result<Vec<c64>, FrfError> {
         let r = self.interface_dofs;
-        let w2 = omega * omega;
-        for j in 0..r {
-            for i in j..r {
-                z[(i, j)] = c64::new(z_re[j * r + i], z_im[j * r + i]);
-            }
-        }
-        let mut rhs = Mat::<c64>::from_fn(r, 1, |i, _| c64::new(self.load[i], 0.0));
-        for (g, d) in self.groups.iter().zip(den) {
-            for (j, dj) in d.iter().enumerate() {
-                if g.load[j] != 0.0 {
-                    let c = dj * (w2 * g.load[j]);
-                    for i in 0..r {
-                        rhs[(i, 0)] += c * g.coupling[(i, j)];
-                    }
-                }
-            }
-        }
-        let b: Vec<c64> = rhs.col(0).iter().copied().collect();
-        let mut u = b.clone();
+        let mut u = b.to_vec();
         let by_ldlt = ldlt::factor_in_place(z, panel) && {
             ldlt::solve_in_place(z, &mut u);
-            ldlt::relative_residual(z_re, z_im, &u, &b) <= ldlt::RESIDUAL_TOLERANCE
+            ldlt::relative_residual(z_re, z_im, &u, b) <= ldlt::RESIDUAL_TOLERANCE
         };
         if !by_ldlt {
             for j in 0..r {
@@ -211,6 +252,7 @@ impl InterfaceModel {
                     z[(j, i)] = v;
                 }
             }
+            let rhs = Mat::<c64>::from_fn(r, 1, |i, _| b[i]);
             u = lu_solve_sequential(z, rhs.as_ref());
         }
         if u.iter().any(|x| !x.re.is_finite() || !x.im.is_finite()) {
@@ -222,19 +264,47 @@ impl InterfaceModel {
                 message: "singular (non-finite solution)".into(),
             });
         }
-        let mut out = Vec::with_capacity(self.basis_size());
-        out.extend_from_slice(&u);
-        for (g, d) in self.groups.iter().zip(den) {
-            for (j, dj) in d.iter().enumerate() {
-                let au: c64 = u
-                    .iter()
-                    .zip(g.coupling.col_as_slice(j))
-                    .map(|(x, &a)| x * a)
-                    .sum();
-                out.push(dj * (au * w2 + g.load[j]));
+        Ok(u)
+    }
+
+    /// Every basis coordinate [u_Γ | group modes …] at each of `omegas` from its interface
+    /// solution: x_j = (f_j + ω² a_jᵀ u_Γ)/(k_g λ_j − ω²), the products a_jᵀ u_Γ as one
+    /// matrix product per group over all the frequencies.
+    pub(super) fn modal_coordinates(
+        &self,
+        omegas: &[f64],
+        den: &[Vec<Vec<c64>>],
+        us: Vec<Vec<c64>>,
+    ) -> Vec<Vec<c64>> {
+        let (r, nb) = (self.interface_dofs, omegas.len());
+        // column b: Re u_Γ(ω_b), column nb + b: Im
+        let u = Mat::<f64>::from_fn(r, 2 * nb, |i, c| {
+            let v = us[c % nb][i];
+            if c < nb {
+                v.re
+            } else {
+                v.im
+            }
+        });
+        let mut out: Vec<Vec<c64>> = us
+            .into_iter()
+            .map(|u| {
+                let mut x = Vec::with_capacity(self.basis_size());
+                x.extend_from_slice(&u);
+                x
+            })
+            .collect();
+        for (g, grp) in self.groups.iter().enumerate() {
+            let au = grp.coupling.transpose() * &u;
+            for (b, x) in out.iter_mut().enumerate() {
+                let w2 = omegas[b] * omegas[b];
+                x.extend((0..grp.load.len()).map(|j| {
+                    let a = c64::new(au[(j, b)], au[(j, nb + b)]);
+                    den[b][g][j] * (a * w2 + grp.load[j])
+                }));
             }
         }
-        Ok(out)
+        out
     }
 
     /// Receptance at every sensor and frequency as modal responses × sensor weights, the
