@@ -1,6 +1,8 @@
 //! The per-frequency solve of the interface form: assemble the interface dynamic stiffness as
 //! constant terms plus rank-one modal terms, one dense LU, then every modal coordinate.
 
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+
 use faer::linalg::matmul::triangular::{matmul as tri_matmul, BlockStructure};
 use faer::{c64, Accum, Mat, MatMut, Par};
 
@@ -308,8 +310,8 @@ impl InterfaceModel {
     }
 
     /// Receptance at every sensor and frequency as modal responses × sensor weights, the
-    /// modal sums interpolated where exact ([`super::blocks`]), the frequencies split over two
-    /// threads.
+    /// modal sums interpolated where exact ([`super::blocks`]), the blocks of frequencies shared
+    /// by two threads.
     pub fn factored_frf(&self, freqs_hz: &[f64]) -> Result<FactoredFrf, FrfError> {
         self.factored_frf_with(freqs_hz, ModalSums::Interpolated)
     }
@@ -322,54 +324,71 @@ impl InterfaceModel {
     ) -> Result<FactoredFrf, FrfError> {
         validate_frequencies(freqs_hz)?;
         let m = self.basis_size();
-        let threads = 2usize;
-        let chunk = freqs_hz.len().div_ceil(threads).max(1);
-        let parts: Vec<Result<Vec<Vec<c64>>, FrfError>> = std::thread::scope(|sc| {
-            let handles: Vec<_> = freqs_hz
-                .chunks(chunk)
-                .map(|part| {
-                    sc.spawn(move || {
-                        let mut s = Scratch::new(self);
-                        let omegas: Vec<f64> =
-                            part.iter().map(|&f| std::f64::consts::TAU * f).collect();
-                        let mut rows = Vec::with_capacity(part.len());
-                        for block in omegas.chunks(BLOCK_FREQUENCIES) {
-                            match sums {
-                                ModalSums::Interpolated => {
-                                    rows.extend(self.solve_block(block, &mut s)?)
-                                }
-                                ModalSums::Exact => {
-                                    for &w in block {
-                                        rows.push(self.solve_exact(w, &mut s)?);
-                                    }
-                                }
-                            }
-                        }
-                        Ok(rows)
-                    })
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| {
-                    h.join().unwrap_or_else(|_| {
+        let omegas: Vec<f64> = freqs_hz
+            .iter()
+            .map(|&f| std::f64::consts::TAU * f)
+            .collect();
+        let blocks: Vec<&[f64]> = omegas.chunks(BLOCK_FREQUENCIES).collect();
+        // blocks handed out one at a time: their cost varies ten-fold (modes near a block are
+        // summed at every line), so a fixed split left one thread idle for seconds
+        let next = AtomicUsize::new(0);
+        let failed = AtomicBool::new(false);
+        let worker = || -> Vec<(usize, Result<Vec<Vec<c64>>, FrfError>)> {
+            let mut s = Scratch::new(self);
+            let mut done = Vec::new();
+            loop {
+                let i = next.fetch_add(1, Ordering::Relaxed);
+                if i >= blocks.len() || failed.load(Ordering::Relaxed) {
+                    return done;
+                }
+                let rows = match sums {
+                    ModalSums::Interpolated => self.solve_block(blocks[i], &mut s),
+                    ModalSums::Exact => blocks[i]
+                        .iter()
+                        .map(|&w| self.solve_exact(w, &mut s))
+                        .collect(),
+                };
+                if rows.is_err() {
+                    failed.store(true, Ordering::Relaxed);
+                }
+                done.push((i, rows));
+            }
+        };
+        let mut solved: Vec<(usize, Result<Vec<Vec<c64>>, FrfError>)> =
+            std::thread::scope(|sc| {
+                let helper = sc.spawn(worker);
+                let mut mine = worker();
+                match helper.join() {
+                    Ok(theirs) => mine.extend(theirs),
+                    Err(_) => mine.push((
+                        0,
                         Err(FrfError::Invalid {
                             what: "interface sweep".into(),
                             message: "a frequency worker panicked".into(),
-                        })
-                    })
-                })
-                .collect()
-        });
+                        }),
+                    )),
+                }
+                mine
+            });
+        solved.sort_by_key(|(i, _)| *i);
         let mut modal = Mat::<c64>::zeros(freqs_hz.len(), m);
         let mut row = 0;
-        for p in parts {
-            for x in p? {
-                for (j, v) in x.into_iter().enumerate() {
-                    modal[(row, j)] = v;
+        for (_, rows) in solved {
+            let rows = rows?;
+            // column by column: the block's lines are contiguous in each column of `modal`
+            for j in 0..m {
+                let col = &mut modal.col_as_slice_mut(j)[row..row + rows.len()];
+                for (dst, x) in col.iter_mut().zip(&rows) {
+                    *dst = x[j];
                 }
-                row += 1;
             }
+            row += rows.len();
+        }
+        if row != freqs_hz.len() {
+            return Err(FrfError::Invalid {
+                what: "interface sweep".into(),
+                message: format!("expected {} frequency lines, got {row}", freqs_hz.len()),
+            });
         }
         let weights = Mat::<c64>::from_fn(self.weights.nrows(), m, |i, j| {
             c64::new(self.weights[(i, j)], 0.0)
