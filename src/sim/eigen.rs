@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use faer::linalg::solvers::Solve;
 use faer::sparse::{SparseColMat, Triplet};
-use faer::{Accum, Mat, MatMut, MatRef, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
 use super::assembly::sparse_from_triplets;
 use super::error::SimError;
@@ -150,25 +150,67 @@ impl Lanczos {
         MatRef::from_column_major_slice(&self.p[..self.n * m], self.n, m)
     }
     /// w ← w − Q (Pᵀ w) over the first `m` vectors (one classical Gram–Schmidt pass).
+    ///
+    /// The rows are split in two halves done on two threads: the pass reads the whole basis
+    /// twice and is bound by memory bandwidth, which one core does not saturate. (While the
+    /// interface form's static shapes occupy the other core, the helper shares it.)
     fn orthogonalise(&self, w: &mut [f64], m: usize) {
         if m == 0 {
             return;
         }
-        let par = faer::get_global_parallelism();
-        let mut c = Mat::<f64>::zeros(m, 1);
-        let wr = MatRef::from_column_major_slice(w, self.n, 1);
-        faer::linalg::matmul::matmul(
-            c.as_mut(),
-            Accum::Replace,
-            self.p_ref(m).transpose(),
-            wr,
-            1.0,
-            par,
-        );
-        let wm = MatMut::from_column_major_slice_mut(w, self.n, 1);
-        faer::linalg::matmul::matmul(wm, Accum::Add, self.q_ref(m), c.as_ref(), -1.0, par);
+        let n = self.n;
+        let half = if n >= PARALLEL_ROWS_MIN { n / 2 } else { n };
+        let (w_top, w_bottom) = w.split_at_mut(half);
+        let rows = [(0, half), (half, n - half)];
+        let part = |(r0, len): (usize, usize), w: &[f64]| -> Mat<f64> {
+            let mut c = Mat::<f64>::zeros(m, 1);
+            if len > 0 {
+                faer::linalg::matmul::matmul(
+                    c.as_mut(),
+                    Accum::Replace,
+                    self.p_ref(m).subrows(r0, len).transpose(),
+                    MatRef::from_column_major_slice(w, len, 1),
+                    1.0,
+                    Par::Seq,
+                );
+            }
+            c
+        };
+        let update = |(r0, len): (usize, usize), w: &mut [f64], c: MatRef<'_, f64>| {
+            if len > 0 {
+                faer::linalg::matmul::matmul(
+                    MatMut::from_column_major_slice_mut(w, len, 1),
+                    Accum::Add,
+                    self.q_ref(m).subrows(r0, len),
+                    c,
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+        };
+        let c = if half < n {
+            std::thread::scope(|sc| {
+                let h = sc.spawn(|| part(rows[1], w_bottom));
+                let mut c = part(rows[0], w_top);
+                c += h.join().expect("re-orthogonalisation worker");
+                c
+            })
+        } else {
+            part(rows[0], w_top)
+        };
+        if half < n {
+            std::thread::scope(|sc| {
+                sc.spawn(|| update(rows[1], w_bottom, c.as_ref()));
+                update(rows[0], w_top, c.as_ref());
+            });
+        } else {
+            update(rows[0], w_top, c.as_ref());
+        }
     }
 }
+
+/// Lanczos vectors at least this long are re-orthogonalised on two threads.
+const PARALLEL_ROWS_MIN: usize = 20_000;
 
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0; 4];

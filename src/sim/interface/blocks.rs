@@ -23,6 +23,10 @@ pub const BLOCK_FREQUENCIES: usize = 256;
 /// Chebyshev nodes per block.
 pub const NODES: usize = 16;
 
+/// A block is halved when its near modes' exact sums cost more than this many times its far
+/// modes' node sums (and each half keeps at least 2 × [`NODES`] lines).
+const SPLIT_RATIO: usize = 2;
+
 /// Frequencies whose interpolated sums are formed together (one pass over the node sums).
 const BATCH: usize = 8;
 
@@ -139,6 +143,18 @@ impl InterfaceModel {
                     })
                     .collect(),
             );
+        }
+        // Modes near the block are summed at every line, far ones at the NODES nodes: when the
+        // near ones cost more than SPLIT_RATIO times the node sums, two half blocks (with
+        // fewer near modes each) are cheaper despite their second set of node sums.
+        let near_count = far.iter().flatten().filter(|&&f| !f).count();
+        let far_count = far.iter().flatten().filter(|&&f| f).count();
+        if omegas.len() >= 4 * NODES && near_count * omegas.len() > SPLIT_RATIO * NODES * far_count
+        {
+            let (first, second) = omegas.split_at(omegas.len() / 2);
+            let mut out = self.solve_block(first, s)?;
+            out.extend(self.solve_block(second, s)?);
+            return Ok(out);
         }
         let r = self.interface_dofs;
         let far_groups: Vec<(usize, Vec<usize>)> = far
