@@ -543,7 +543,7 @@ pub fn check_modes(system: &FeSystem, modes: &Modes) -> Result<(f64, f64), SimEr
         modes.shapes.transpose(),
         mphi.as_ref(),
         1.0,
-        faer::Par::Seq,
+        faer::get_global_parallelism(),
     );
     let mut worst_orth: f64 = 0.0;
     for i in 0..m {

@@ -46,6 +46,9 @@ impl Scratch {
     }
 }
 
+/// A block's index in the sweep and its lines' basis coordinates (or why it failed).
+type SolvedBlock = (usize, Result<Vec<Vec<c64>>, FrfError>);
+
 /// How the modal terms of the interface dynamic stiffness are summed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ModalSums {
@@ -333,7 +336,7 @@ impl InterfaceModel {
         // summed at every line), so a fixed split left one thread idle for seconds
         let next = AtomicUsize::new(0);
         let failed = AtomicBool::new(false);
-        let worker = || -> Vec<(usize, Result<Vec<Vec<c64>>, FrfError>)> {
+        let worker = || -> Vec<SolvedBlock> {
             let mut s = Scratch::new(self);
             let mut done = Vec::new();
             loop {
@@ -354,22 +357,21 @@ impl InterfaceModel {
                 done.push((i, rows));
             }
         };
-        let mut solved: Vec<(usize, Result<Vec<Vec<c64>>, FrfError>)> =
-            std::thread::scope(|sc| {
-                let helper = sc.spawn(worker);
-                let mut mine = worker();
-                match helper.join() {
-                    Ok(theirs) => mine.extend(theirs),
-                    Err(_) => mine.push((
-                        0,
-                        Err(FrfError::Invalid {
-                            what: "interface sweep".into(),
-                            message: "a frequency worker panicked".into(),
-                        }),
-                    )),
-                }
-                mine
-            });
+        let mut solved: Vec<SolvedBlock> = std::thread::scope(|sc| {
+            let helper = sc.spawn(worker);
+            let mut mine = worker();
+            match helper.join() {
+                Ok(theirs) => mine.extend(theirs),
+                Err(_) => mine.push((
+                    0,
+                    Err(FrfError::Invalid {
+                        what: "interface sweep".into(),
+                        message: "a frequency worker panicked".into(),
+                    }),
+                )),
+            }
+            mine
+        });
         solved.sort_by_key(|(i, _)| *i);
         let mut modal = Mat::<c64>::zeros(freqs_hz.len(), m);
         let mut row = 0;
