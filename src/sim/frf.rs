@@ -17,6 +17,7 @@ use faer::sparse::linalg::lu::{factorize_symbolic_lu, NumericLu, SymbolicLu};
 use faer::sparse::{SparseColMat, SparseColMatRef, SymbolicSparseColMat, Triplet};
 use faer::{Conj, Mat, Par};
 
+use super::assembly::sparse_from_triplets;
 use super::system::{FeSystem, SensorWeights};
 
 /// What went wrong while computing responses (FRFs, reduced models, impulse responses).
@@ -242,13 +243,12 @@ impl<'a> DirectSolver<'a> {
         for t in &sys.stiffness_terms {
             push(&t.matrix);
         }
-        let union =
-            SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &trip).map_err(|e| {
-                FrfError::Factorisation {
-                    what: "union sparsity pattern".into(),
-                    message: format!("{e:?}"),
-                }
-            })?;
+        let union = sparse_from_triplets(n, &trip, "union sparsity pattern").map_err(|e| {
+            FrfError::Factorisation {
+                what: "union sparsity pattern".into(),
+                message: e.to_string(),
+            }
+        })?;
         let pattern = union
             .symbolic()
             .to_owned()

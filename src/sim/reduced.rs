@@ -25,10 +25,11 @@
 use faer::c64;
 use faer::linalg::solvers::Solve;
 use faer::sparse::linalg::solvers::Llt;
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::SparseColMat;
 use faer::{Accum, Mat, MatRef, Par, Side};
 
 pub(crate) use super::basis::{m_orthonormalise, m_orthonormalise_columns};
+use super::eigen::{reference_stiffness, sparse_combination};
 use super::factored::{FactoredFrf, FrfSolve};
 use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
 use super::system::FeSystem;
@@ -115,20 +116,9 @@ pub fn perturbing_regions(sys: &FeSystem) -> Vec<usize> {
 
 /// Sum of every stiffness term, K₀ (each region at its reference modulus).
 pub(crate) fn k0(sys: &FeSystem) -> Result<SparseColMat<usize, f64>, FrfError> {
-    let mut trip = Vec::new();
-    for t in &sys.stiffness_terms {
-        let (sym, val) = t.matrix.parts();
-        for j in 0..sys.n_free {
-            for k in sym.col_range(j) {
-                trip.push(Triplet::new(sym.row_idx()[k], j, val[k]));
-            }
-        }
-    }
-    SparseColMat::try_new_from_triplets(sys.n_free, sys.n_free, &trip).map_err(|e| {
-        FrfError::Factorisation {
-            what: "K0 assembly".into(),
-            message: format!("{e:?}"),
-        }
+    reference_stiffness(sys).map_err(|e| FrfError::Factorisation {
+        what: "K0 assembly".into(),
+        message: e.to_string(),
     })
 }
 
@@ -145,21 +135,11 @@ pub(super) fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError>
         Ok(l) => Ok(l),
         Err(_) => {
             let sigma = (2.0 * std::f64::consts::PI).powi(2);
-            let mut trip = Vec::new();
-            for (m, s) in [(&k, 1.0), (&sys.mass, sigma)] {
-                let (sym, val) = m.parts();
-                for j in 0..sys.n_free {
-                    for idx in sym.col_range(j) {
-                        trip.push(Triplet::new(sym.row_idx()[idx], j, s * val[idx]));
-                    }
-                }
-            }
-            let ks = SparseColMat::try_new_from_triplets(sys.n_free, sys.n_free, &trip).map_err(
-                |e| FrfError::Factorisation {
+            let ks = sparse_combination(sys.n_free, &[(1.0, &k), (sigma, &sys.mass)], "K0 + σM")
+                .map_err(|e| FrfError::Factorisation {
                     what: "K0 + σM assembly".into(),
-                    message: format!("{e:?}"),
-                },
-            )?;
+                    message: e.to_string(),
+                })?;
             ks.sp_cholesky(Side::Lower)
                 .map_err(|e| FrfError::Factorisation {
                     what: "K0 (and K0 + σM) Cholesky for the static residual".into(),

@@ -1,5 +1,6 @@
 //! The per-frequency solve of the interface form: assemble the interface dynamic stiffness as
-//! constant terms plus rank-one modal terms, one dense LU, then every modal coordinate.
+//! constant terms plus rank-one modal terms, one complex symmetric LDLᵀ (checked, else the
+//! pivoting LU), then every modal coordinate.
 
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
@@ -44,6 +45,19 @@ impl Scratch {
             panel: Mat::zeros(r, ldlt::PANEL),
         }
     }
+}
+
+/// The rows × 2·nb real matrix whose column b is Re v(·, b) and column nb + b is Im v(·, b):
+/// complex vectors of nb frequencies laid out for one real product with a real matrix.
+fn re_im_columns(rows: usize, nb: usize, v: impl Fn(usize, usize) -> c64) -> Mat<f64> {
+    Mat::from_fn(rows, 2 * nb, |i, c| {
+        let x = v(i, c % nb);
+        if c < nb {
+            x.re
+        } else {
+            x.im
+        }
+    })
 }
 
 /// A block's index in the sweep and its lines' basis coordinates (or why it failed).
@@ -204,15 +218,8 @@ impl InterfaceModel {
             if grp.load.iter().all(|&f| f == 0.0) {
                 continue;
             }
-            // column b: Re of the coefficients at ω_b, column nb + b: Im
-            let coef = Mat::<f64>::from_fn(grp.load.len(), 2 * nb, |j, c| {
-                let b = c % nb;
-                let v = den[b][g][j] * (omegas[b] * omegas[b] * grp.load[j]);
-                if c < nb {
-                    v.re
-                } else {
-                    v.im
-                }
+            let coef = re_im_columns(grp.load.len(), nb, |j, b| {
+                den[b][g][j] * (omegas[b] * omegas[b] * grp.load[j])
             });
             faer::linalg::matmul::matmul(
                 total.as_mut(),
@@ -282,15 +289,7 @@ impl InterfaceModel {
         us: Vec<Vec<c64>>,
     ) -> Vec<Vec<c64>> {
         let (r, nb) = (self.interface_dofs, omegas.len());
-        // column b: Re u_Γ(ω_b), column nb + b: Im
-        let u = Mat::<f64>::from_fn(r, 2 * nb, |i, c| {
-            let v = us[c % nb][i];
-            if c < nb {
-                v.re
-            } else {
-                v.im
-            }
-        });
+        let u = re_im_columns(r, nb, |i, b| us[b][i]);
         let mut out: Vec<Vec<c64>> = us
             .into_iter()
             .map(|u| {
