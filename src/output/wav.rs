@@ -105,9 +105,7 @@ pub fn write_wav_f32<W: Write>(
             ch.len()
         )));
     }
-    let block = Block {
-        channels: channels.to_vec(),
-    };
+    let block = Block::new(channels.to_vec());
     let mut w = WavStreamWriter::new(out, sample_rate_hz, channels.len(), n_frames as u64)?;
     w.write_block(&block)?;
     w.finish()?.flush()
@@ -240,19 +238,10 @@ mod tests {
     #[test]
     fn stream_writer_checks_frame_count() {
         let mut w = WavStreamWriter::new(Vec::new(), 100, 1, 3).unwrap();
-        w.write_block(&Block {
-            channels: vec![vec![1.0, 2.0]],
-        })
-        .unwrap();
+        w.write_block(&Block::new(vec![vec![1.0, 2.0]])).unwrap();
+        assert!(w.write_block(&Block::new(vec![vec![1.0, 2.0]])).is_err());
         assert!(w
-            .write_block(&Block {
-                channels: vec![vec![1.0, 2.0]]
-            })
-            .is_err());
-        assert!(w
-            .write_block(&Block {
-                channels: vec![vec![1.0], vec![2.0]]
-            })
+            .write_block(&Block::new(vec![vec![1.0], vec![2.0]]))
             .is_err());
         assert!(w.finish().is_err());
     }

@@ -378,10 +378,23 @@ impl ChannelAnalyzer {
 
     /// Feeds the next samples of the channel; rows of decays that ended are appended to `out`.
     pub fn push(&mut self, samples: &[f64], out: &mut Vec<ResultRow>) {
+        self.push_checked(samples, false, out)
+    }
+
+    /// [`ChannelAnalyzer::push`] of samples the caller may already know to be all finite
+    /// (`known_finite`, e.g. [`crate::source::Block::known_finite`]): then they are not scanned
+    /// for NaN and infinities again.
+    pub fn push_checked(&mut self, samples: &[f64], known_finite: bool, out: &mut Vec<ResultRow>) {
         if self.failed {
             return;
         }
-        if let Some(bad) = first_non_finite(self.isa, samples) {
+        let bad = if known_finite {
+            debug_assert!(samples.iter().all(|v| v.is_finite()));
+            None
+        } else {
+            first_non_finite(self.isa, samples)
+        };
+        if let Some(bad) = bad {
             // Decays that ended before the bad sample stand, whatever the block size; the open
             // one is dropped and the channel stops there.
             self.push(&samples[..bad], out);

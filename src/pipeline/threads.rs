@@ -138,6 +138,9 @@ pub fn run_with(
                     Some(i) => Arc::try_unwrap(pool.swap_remove(i)).unwrap_or_default(),
                     None => Block::default(),
                 };
+                // A recycled block's flags belong to its last samples (a source that does not
+                // check leaves them empty).
+                block.known_finite.clear();
                 let t0 = std::time::Instant::now();
                 let got = source.read_block(block_frames, &mut block);
                 read_s += t0.elapsed().as_secs_f64();
@@ -273,7 +276,10 @@ fn worker(
         for (i, (c, an)) in group.iter_mut().enumerate() {
             let rows = match &msg {
                 ToWorker::Block(block) => match block.channels.get(*c) {
-                    Some(samples) => guarded(i, an, &|an, o| an.push(samples, o)),
+                    Some(samples) => {
+                        let finite = block.is_known_finite(*c);
+                        guarded(i, an, &|an, o| an.push_checked(samples, finite, o))
+                    }
                     None => Vec::new(),
                 },
                 ToWorker::End { truncated } => {

@@ -102,12 +102,29 @@ impl SignalInfo {
 pub struct Block {
     /// One vector of samples per channel.
     pub channels: Vec<Vec<f64>>,
+    /// Per channel, `true` where the source that decoded this block saw that every one of its
+    /// samples is finite (it checked while converting, at no extra pass); empty or `false`:
+    /// not known, and the analysis checks the samples itself.
+    pub known_finite: Vec<bool>,
 }
 
 impl Block {
+    /// A block of these channels' samples, nothing known of their finiteness.
+    pub fn new(channels: Vec<Vec<f64>>) -> Self {
+        Block {
+            channels,
+            known_finite: Vec::new(),
+        }
+    }
+
     /// Number of sample frames (samples per channel) in the block.
     pub fn frames(&self) -> usize {
         self.channels.first().map_or(0, Vec::len)
+    }
+
+    /// Whether the source saw that every sample of channel `c` in this block is finite.
+    pub fn is_known_finite(&self, c: usize) -> bool {
+        self.known_finite.get(c).copied().unwrap_or(false)
     }
 }
 

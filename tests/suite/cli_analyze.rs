@@ -180,6 +180,61 @@ fn nan_channel_is_flagged_and_the_other_channel_still_analysed() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("NaN"));
 }
 
+/// Raw f32 from 16 channels takes the decoder that checks finiteness while it converts (groups
+/// of eight channels): a NaN in one channel's second block and an infinity in another's first
+/// eight frames flag exactly those two channels, and the 14 others are analysed.
+#[test]
+fn non_finite_samples_found_by_the_decoder_flag_only_their_channels() {
+    let (fs, n_ch, frames) = (4000.0, 16usize, 16000usize);
+    let w = 2.0 * std::f64::consts::PI * 55.0;
+    let mut raw = Vec::with_capacity(frames * n_ch * 4);
+    for i in 0..frames {
+        let t = i as f64 / fs;
+        let x = ((-(0.025 * w) * t).exp() * (w * t).sin()) as f32;
+        for c in 0..n_ch {
+            let v = match (c, i) {
+                (5, 5000) => f32::NAN,
+                (12, 3) => f32::INFINITY,
+                _ => x,
+            };
+            raw.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    let out = dampscope(
+        &[
+            "analyze",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4000",
+            "--channels",
+            "16",
+            "--band",
+            "52.5:57.5",
+        ],
+        &raw,
+    );
+    assert_clean(&out);
+    assert_eq!(out.status.code(), Some(3));
+    let rows = dampscope::output::read_table(&String::from_utf8(out.stdout).unwrap()).unwrap();
+    for c in 0..n_ch {
+        let name = format!("ch{c}");
+        let row = rows.iter().find(|r| r["channel"] == name).unwrap();
+        if c == 5 || c == 12 {
+            assert!(row["flags"].contains("non_finite_input"), "{name}: {row:?}");
+            assert!(row["damping_ratio"].is_empty(), "{name}");
+        } else {
+            assert!(
+                !row["flags"].contains("non_finite_input"),
+                "{name}: {row:?}"
+            );
+            let d: f64 = row["damping_ratio"].parse().unwrap();
+            assert!((d - 0.025).abs() < 0.0025, "{name}: D {d}");
+        }
+    }
+}
+
 #[test]
 fn recording_set_directory_is_analysed() {
     let dir =

@@ -63,9 +63,9 @@ fn stream_writer_equals_whole_writer() {
     let mut w = WavStreamWriter::new(Vec::new(), 8000, 2, 500).unwrap();
     for start in (0..500).step_by(77) {
         let end = (start + 77).min(500);
-        w.write_block(&Block {
-            channels: sig.iter().map(|c| c[start..end].to_vec()).collect(),
-        })
+        w.write_block(&Block::new(
+            sig.iter().map(|c| c[start..end].to_vec()).collect(),
+        ))
         .unwrap();
     }
     assert_eq!(w.finish().unwrap(), whole);
