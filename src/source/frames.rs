@@ -184,6 +184,9 @@ pub(crate) struct FrameReader<R> {
     done: bool,
     buf: Vec<u8>,
     what: String,
+    /// The input as a mapped file, and how many of its bytes were decoded: then `reader` and
+    /// `buf` are unused and blocks are decoded straight from the mapping.
+    mapped: Option<(super::mapped::MappedBytes, usize)>,
 }
 
 impl<R: Read> FrameReader<R> {
@@ -209,7 +212,29 @@ impl<R: Read> FrameReader<R> {
             done: false,
             buf: Vec::new(),
             what,
+            mapped: None,
         }
+    }
+
+    /// Like [`FrameReader::new`], decoding from `mapped` bytes instead of reading `reader`.
+    pub(crate) fn from_mapped(
+        reader: R,
+        mapped: super::mapped::MappedBytes,
+        codec: Codec,
+        channels: usize,
+        scale: f64,
+        announced_bytes: Option<u64>,
+        what: String,
+    ) -> Self {
+        let mut frames = Self::new(reader, codec, channels, scale, announced_bytes, what);
+        frames.mapped = Some((mapped, 0));
+        frames
+    }
+
+    /// Whether the input is decoded from a mapped file.
+    #[cfg(test)]
+    pub(crate) fn is_mapped(&self) -> bool {
+        self.mapped.is_some()
     }
 
     /// Replaces the multiplier applied to every decoded value.
@@ -271,9 +296,12 @@ impl<R: Read> FrameReader<R> {
             return Ok(false);
         }
         let fb = self.frame_bytes();
-        // At most ~1 MiB per call (but at least one frame): memory stays bounded whatever the
-        // caller asks; fewer frames than asked is within the contract.
+        // At most MAX_BLOCK_BYTES per call (but at least one frame): memory stays bounded
+        // whatever the caller asks; fewer frames than asked is within the contract.
         let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
+        if self.mapped.is_some() {
+            return self.read_mapped_block(max_frames.clamp(1, cap_frames), block);
+        }
         let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb);
         if let Some(n) = self.announced_bytes {
             want = want.min(self.have + (n - self.bytes_read) as usize);
@@ -321,6 +349,47 @@ impl<R: Read> FrameReader<R> {
         );
         self.buf.copy_within(whole * fb..self.have, 0);
         self.have = partial;
+        self.frames_read += whole as u64;
+        if whole == 0 {
+            return super::end_of_input(&mut self.pending, self.frames_read, &self.what);
+        }
+        Ok(true)
+    }
+
+    /// [`FrameReader::read_block`] from the mapped file: up to `frames` frames decoded in place,
+    /// with the same end, truncation and empty-input reports as the stream.
+    fn read_mapped_block(&mut self, frames: usize, block: &mut Block) -> Result<bool, SourceError> {
+        let fb = self.frame_bytes();
+        let Some((mapped, used)) = &mut self.mapped else {
+            return Ok(false);
+        };
+        let all = mapped.bytes();
+        let end = self
+            .announced_bytes
+            .map_or(all.len(), |n| all.len().min(n as usize));
+        let rest = end - *used;
+        let whole = (rest / fb).min(frames);
+        let bytes = &all[*used..*used + whole * fb];
+        deinterleave(
+            self.codec,
+            bytes,
+            self.scale,
+            &mut block.channels,
+            &mut block.known_finite,
+        );
+        *used += whole * fb;
+        self.bytes_read = *used as u64;
+        if end - *used < fb {
+            // The last whole frame is out: what is left is a partial frame, or a file shorter
+            // than its header announced.
+            self.done = true;
+            let partial = end - *used;
+            let short = self.announced_bytes.is_some_and(|n| (end as u64) < n);
+            if partial > 0 || short {
+                self.bytes_read = end as u64;
+                self.pending = Some(self.truncation(partial, whole));
+            }
+        }
         self.frames_read += whole as u64;
         if whole == 0 {
             return super::end_of_input(&mut self.pending, self.frames_read, &self.what);

@@ -153,6 +153,7 @@ mod frames;
 pub mod frf;
 pub mod frf_csv;
 pub mod frf_input;
+pub mod mapped;
 pub mod memory;
 pub mod noise;
 pub mod open;

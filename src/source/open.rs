@@ -122,12 +122,12 @@ fn check_header_rate(
     }
 }
 
-fn raw_source<R: Read + Send + 'static>(
-    reader: R,
+/// The sample rate and channel count a raw input needs from `opts`.
+fn raw_settings(
     what: &str,
     format: RawFormat,
     opts: &InputOptions,
-) -> Result<Box<dyn Source>, SourceError> {
+) -> Result<(f64, usize), SourceError> {
     let fs = opts.fs_hz.ok_or_else(|| SourceError::Setting {
         what: what.to_string(),
         detail: format!("raw {format} input needs the sample rate (fs_hz), none given"),
@@ -136,7 +136,40 @@ fn raw_source<R: Read + Send + 'static>(
         what: what.to_string(),
         detail: format!("raw {format} input needs the channel count (channels), none given"),
     })?;
+    Ok((fs, ch))
+}
+
+fn raw_source<R: Read + Send + 'static>(
+    reader: R,
+    what: &str,
+    format: RawFormat,
+    opts: &InputOptions,
+) -> Result<Box<dyn Source>, SourceError> {
+    let (fs, ch) = raw_settings(what, format, opts)?;
     Ok(Box::new(RawSource::new(reader, what, format, fs, ch)?))
+}
+
+/// [`raw_source`] of a file or of standard input: decoded from the mapped file when it is a
+/// regular one ([`RawSource::from_file`]).
+#[cfg(unix)]
+fn raw_file_source<R: Read + Send + std::os::fd::AsFd + 'static>(
+    file: R,
+    what: &str,
+    format: RawFormat,
+    opts: &InputOptions,
+) -> Result<Box<dyn Source>, SourceError> {
+    let (fs, ch) = raw_settings(what, format, opts)?;
+    Ok(Box::new(RawSource::from_file(file, what, format, fs, ch)?))
+}
+
+#[cfg(not(unix))]
+fn raw_file_source<R: Read + Send + 'static>(
+    file: R,
+    what: &str,
+    format: RawFormat,
+    opts: &InputOptions,
+) -> Result<Box<dyn Source>, SourceError> {
+    raw_source(file, what, format, opts)
 }
 
 /// Opens a stream whose format must be detected (or is raw per `opts`). `what` names it in
@@ -191,6 +224,10 @@ pub fn open_stream<R: Read + Send + 'static>(
 /// standard input.
 pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, SourceError> {
     if path == "-" {
+        if let Some(format) = opts.raw {
+            return raw_file_source(std::io::stdin(), "standard input", format, opts)
+                .map(OpenedInput::plain);
+        }
         return open_stream(std::io::stdin(), "standard input", opts).map(OpenedInput::plain);
     }
     let p = Path::new(path);
@@ -232,6 +269,7 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
             Box::new(wav)
         }
         (None, Some("csv")) => Box::new(CsvSource::new(BufReader::new(file), path, opts.fs_hz)?),
+        (Some(format), _) => raw_file_source(file, path, format, opts)?,
         _ => open_stream(file, path, opts)?,
     };
     check_channels(path, source.as_ref(), opts)?;

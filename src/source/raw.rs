@@ -92,7 +92,51 @@ impl<R: Read + Send> RawSource<R> {
         fs_hz: f64,
         channels: usize,
     ) -> Result<Self, SourceError> {
-        let what = what.into();
+        Self::with_frames(reader, None, what.into(), format, fs_hz, channels)
+    }
+
+    /// The file's remaining bytes as a raw source: decoded straight from the page cache when
+    /// the file is a regular one that can be mapped ([`super::mapped`]), read as a stream
+    /// otherwise. The same blocks, errors and rows either way.
+    #[cfg(unix)]
+    pub fn from_file(
+        file: R,
+        what: impl Into<String>,
+        format: RawFormat,
+        fs_hz: f64,
+        channels: usize,
+    ) -> Result<Self, SourceError>
+    where
+        R: std::os::fd::AsFd,
+    {
+        let mapped = file
+            .as_fd()
+            .try_clone_to_owned()
+            .ok()
+            .and_then(|fd| super::mapped::MappedBytes::rest_of(&std::fs::File::from(fd)));
+        Self::with_frames(file, mapped, what.into(), format, fs_hz, channels)
+    }
+
+    /// Without memory mapping: [`RawSource::new`].
+    #[cfg(not(unix))]
+    pub fn from_file(
+        file: R,
+        what: impl Into<String>,
+        format: RawFormat,
+        fs_hz: f64,
+        channels: usize,
+    ) -> Result<Self, SourceError> {
+        Self::new(file, what, format, fs_hz, channels)
+    }
+
+    fn with_frames(
+        reader: R,
+        mapped: Option<super::mapped::MappedBytes>,
+        what: String,
+        format: RawFormat,
+        fs_hz: f64,
+        channels: usize,
+    ) -> Result<Self, SourceError> {
         let fs_hz = check_fs(&what, fs_hz)?;
         if channels == 0 {
             return Err(SourceError::Setting {
@@ -114,7 +158,12 @@ impl<R: Read + Send> RawSource<R> {
                 sample_rate_hz: fs_hz,
                 channel_names: (0..channels).map(|k| format!("ch{k}")).collect(),
             },
-            frames: FrameReader::new(reader, format.codec(), channels, 1.0, None, what),
+            frames: match mapped {
+                Some(m) => {
+                    FrameReader::from_mapped(reader, m, format.codec(), channels, 1.0, None, what)
+                }
+                None => FrameReader::new(reader, format.codec(), channels, 1.0, None, what),
+            },
         })
     }
 }
@@ -126,5 +175,85 @@ impl<R: Read + Send> Source for RawSource<R> {
 
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
         self.frames.read_block(max_frames, block)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::{Seek, SeekFrom, Write};
+
+    /// Every block, then the end or the error, as text: what a run sees of a source.
+    fn drain(mut source: impl Source) -> Vec<String> {
+        let mut seen = Vec::new();
+        let mut block = Block::default();
+        loop {
+            match source.read_block(1000, &mut block) {
+                Ok(true) => seen.push(format!("{:?} {:?}", block.channels, block.known_finite)),
+                Ok(false) => {
+                    seen.push("end".into());
+                    return seen;
+                }
+                Err(e) => {
+                    seen.push(format!("error: {e}"));
+                    // A source reports once and then ends.
+                    if !matches!(source.read_block(1000, &mut block), Ok(false)) {
+                        seen.push("not ended after the error".into());
+                    }
+                    return seen;
+                }
+            }
+        }
+    }
+
+    /// The mapped file gives exactly the blocks, flags and errors of the same bytes read as a
+    /// stream: whole files, files ending in a partial frame, a file read from an offset that is
+    /// not on a page or a frame boundary, and a file with nothing left.
+    #[test]
+    fn a_mapped_file_reads_as_the_same_bytes_streamed() {
+        let dir = std::env::temp_dir().join(format!("dampscope-mapped-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (n_ch, frames, stray, skip) in [
+            (8usize, 5000usize, 0usize, 0usize),
+            (8, 5000, 3, 0),
+            (3, 2001, 5, 0),
+            (16, 700, 0, 4097),
+            (1, 10, 0, 40),
+        ] {
+            let mut bytes = Vec::new();
+            for i in 0..frames * n_ch {
+                let v = if i == 777 {
+                    f32::NAN
+                } else {
+                    (i % 97) as f32 - 48.0
+                };
+                bytes.extend_from_slice(&v.to_le_bytes());
+            }
+            bytes.extend(std::iter::repeat_n(7u8, stray));
+            let path = dir.join(format!("{n_ch}-{frames}-{stray}-{skip}.f32"));
+            std::fs::File::create(&path)
+                .unwrap()
+                .write_all(&bytes)
+                .unwrap();
+            let mut file = std::fs::File::open(&path).unwrap();
+            file.seek(SeekFrom::Start(skip as u64)).unwrap();
+            let mapped = RawSource::from_file(file, "x", RawFormat::F32, 1000.0, n_ch).unwrap();
+            assert!(mapped.frames.is_mapped() || skip >= bytes.len());
+            let stream = RawSource::new(
+                std::io::Cursor::new(bytes[skip.min(bytes.len())..].to_vec()),
+                "x",
+                RawFormat::F32,
+                1000.0,
+                n_ch,
+            )
+            .unwrap();
+            let (a, b) = (drain(mapped), drain(stream));
+            assert_eq!(
+                a, b,
+                "{n_ch} ch, {frames} frames, {stray} stray, from {skip}"
+            );
+            assert!(!a.is_empty());
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 }

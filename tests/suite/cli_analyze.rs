@@ -235,6 +235,66 @@ fn non_finite_samples_found_by_the_decoder_flag_only_their_channels() {
     }
 }
 
+/// Standard input redirected from a file is decoded from the mapped file, a pipe is read as a
+/// stream: the same rows, exit code and error for a whole raw file (8 channels, two hits) and for
+/// one that ends inside a frame; a file named on the command line likewise.
+#[test]
+fn raw_input_from_a_file_gives_what_the_same_bytes_piped_give() {
+    let fs = 4000.0;
+    let w = 2.0 * std::f64::consts::PI * 55.0;
+    let mut raw = Vec::new();
+    for i in 0..40000usize {
+        let t = (i % 20000) as f64 / fs;
+        let x = ((-(0.025 * w) * t).exp() * (w * t).sin()) as f32;
+        for c in 0..8 {
+            raw.extend_from_slice(&(x * (1.0 + c as f32)).to_le_bytes());
+        }
+    }
+    let dir = crate::common::fresh_dir("mapped-stdin");
+    let args = [
+        "analyze",
+        "-",
+        "--raw",
+        "f32",
+        "--fs",
+        "4000",
+        "--channels",
+        "8",
+        "--band",
+        "52.5:57.5",
+    ];
+    for stray in [0usize, 5] {
+        let mut bytes = raw.clone();
+        bytes.extend(std::iter::repeat_n(1u8, stray));
+        let path = dir.join(format!("x{stray}.f32"));
+        std::fs::write(&path, &bytes).unwrap();
+        let piped = dampscope(&args, &bytes);
+        let from_file = std::process::Command::new(env!("CARGO_BIN_EXE_dampscope"))
+            .args(args)
+            .stdin(std::fs::File::open(&path).unwrap())
+            .output()
+            .unwrap();
+        let mut named = args.to_vec();
+        named[1] = path.to_str().unwrap();
+        let named = std::process::Command::new(env!("CARGO_BIN_EXE_dampscope"))
+            .args(&named)
+            .output()
+            .unwrap();
+        assert_eq!(piped.status.code(), Some(if stray == 0 { 0 } else { 3 }));
+        let rows = String::from_utf8(piped.stdout.clone()).unwrap();
+        assert_eq!(rows.lines().count(), 1 + 2 * 8, "{rows}");
+        for other in [&from_file, &named] {
+            assert_eq!(other.status.code(), piped.status.code());
+            assert_eq!(other.stdout, piped.stdout);
+        }
+        assert_eq!(from_file.stderr, piped.stderr);
+        if stray > 0 {
+            assert!(String::from_utf8_lossy(&from_file.stderr).contains("5 stray bytes"));
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn recording_set_directory_is_analysed() {
     let dir =
