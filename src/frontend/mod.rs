@@ -114,6 +114,13 @@ pub trait FrontEnd: Send {
     /// ([`crate::decay::leakage`]) predicts with it what a strong band leaks into a weak one.
     fn mode_gain(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64;
 
+    /// A number never below [`FrontEnd::mode_gain`] of the same arguments, for front ends that
+    /// can bound it more cheaply than they compute it (the leakage test asks for the exact gain
+    /// only where the bound cannot clear a band). By default, the gain itself.
+    fn mode_gain_bound(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        self.mode_gain(band, f_hz, sigma_per_s)
+    }
+
     /// How far (Hz) the frequency a band reports may lie outside the band before it counts as
     /// another band's: half a bin for the STFT (a bin holds what lies within it), 0 for a filter.
     fn frequency_tolerance_hz(&self) -> f64 {

@@ -58,6 +58,9 @@ impl LeakageModel for FrontEndLeakage<'_> {
     fn mode_gain(&self, b: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
         self.0.mode_gain(b, f_hz, sigma_per_s)
     }
+    fn mode_gain_bound(&self, b: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        self.0.mode_gain_bound(b, f_hz, sigma_per_s)
+    }
     fn flat_gain(&self, b: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         self.0.flat_gain(b, lo_hz, hi_hz)
     }

@@ -59,6 +59,9 @@ struct BandBins {
     /// Positions (in `weights`) of the bins with a positive weight: contiguous, since only the
     /// edge bins can lie wholly outside the band.
     weighted: std::ops::Range<usize>,
+    /// Running sums of `weights` (`[0]` = 0): the weight of any run of bins in O(1), for the
+    /// mode gain's bound.
+    cumulative: Vec<f64>,
 }
 
 /// Streaming STFT: samples in, per band one energy (and peak frequency) per hop out.
@@ -417,6 +420,7 @@ fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
             first_bin: 0,
             weights: Vec::new(),
             weighted: 0..0,
+            cumulative: vec![0.0],
         };
     }
     let hi_bin = (((band.hi_hz / bin_hz) + 0.5).ceil() as usize).min(n_bins.saturating_sub(1));
@@ -433,10 +437,17 @@ fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
         .rposition(|w| *w > 0.0)
         .map_or(start, |i| i + 1);
     debug_assert!(weights[start..end].iter().all(|w| *w > 0.0));
+    let cumulative = std::iter::once(0.0)
+        .chain(weights.iter().scan(0.0, |sum, w| {
+            *sum += w;
+            Some(*sum)
+        }))
+        .collect();
     BandBins {
         first_bin: lo_bin,
         weights,
         weighted: start..end,
+        cumulative,
     }
 }
 
@@ -540,6 +551,22 @@ impl FrontEnd for StftFrontEnd {
         super::hann_gain::band_mode_gain(
             bb.first_bin,
             &bb.weights,
+            bin_rad,
+            self.window.len(),
+            a,
+            omega,
+        )
+    }
+
+    fn mode_gain_bound(&self, band: usize, f_hz: f64, sigma_per_s: f64) -> f64 {
+        let bb = &self.band_bins[band];
+        let a = sigma_per_s / self.sample_rate_hz;
+        let omega = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
+        let bin_rad = 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz;
+        super::hann_gain::band_mode_gain_bound(
+            bb.first_bin,
+            &bb.weights,
+            &bb.cumulative,
             bin_rad,
             self.window.len(),
             a,

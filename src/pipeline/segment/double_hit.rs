@@ -208,11 +208,21 @@ impl NormalEquations {
     fn over(z: &[f64], from: usize) -> Self {
         const P: usize = DOUBLE_HIT_ORDER;
         let end = z.len();
-        let dot =
-            |i: usize, j: usize| -> f64 { (from..end).map(|t| z[t - 1 - i] * z[t - 1 - j]).sum() };
+        // The first column and the right-hand side in one pass over the rows, all 2P sums side
+        // by side (lanes over the taps; one serial sum per entry was a tenth of a short run).
+        // taps[k] = z[t − P + k], so tap i (z[t − 1 − i]) is taps[P − 1 − i].
+        let (mut first_col, mut rhs) = ([0.0f64; P], [0.0f64; P]);
+        for t in from..end {
+            let taps: &[f64; P] = z[t - P..t].try_into().expect("P taps");
+            let (newest, target) = (z[t - 1], z[t]);
+            for k in 0..P {
+                first_col[k] += taps[k] * newest;
+                rhs[k] += taps[k] * target;
+            }
+        }
         let mut a = SMatrix::<f64, P, P>::zeros();
         for i in 0..P {
-            a[(i, 0)] = dot(i, 0);
+            a[(i, 0)] = first_col[P - 1 - i];
         }
         for j in 1..P {
             for i in j..P {
@@ -225,7 +235,7 @@ impl NormalEquations {
                 a[(i, j)] = a[(j, i)];
             }
         }
-        let b = Coefficients::from_fn(|i, _| (from..end).map(|t| z[t - 1 - i] * z[t]).sum());
+        let b = Coefficients::from_fn(|i, _| rhs[P - 1 - i]);
         NormalEquations { a, b }
     }
 
@@ -258,12 +268,19 @@ impl NormalEquations {
 /// z[t] minus its prediction, for t = p … len − 1 (the samples before the first have no taps).
 fn predict_residual(z: &[f64], coef: &Coefficients) -> Vec<f64> {
     let p = DOUBLE_HIT_ORDER;
-    (p..z.len())
-        .map(|t| {
-            let predicted: f64 = (0..p).map(|i| coef[i] * z[t - 1 - i]).sum();
-            z[t] - predicted
-        })
-        .collect()
+    if z.len() <= p {
+        return Vec::new();
+    }
+    // One pass per tap over all samples (lanes over t), rather than one serial sum per sample.
+    let mut residual = z[p..].to_vec();
+    let n = residual.len();
+    for i in 0..p {
+        let c = coef[i];
+        for (r, &x) in residual.iter_mut().zip(&z[p - 1 - i..p - 1 - i + n]) {
+            *r -= c * x;
+        }
+    }
+    residual
 }
 
 /// 1.4826 × the median magnitude: σ of Gaussian noise, unmoved by a few bursts.
@@ -330,5 +347,39 @@ mod tests {
         x[100] = f64::NAN;
         assert_eq!(second_impact(&[], &x, 8192.0), None);
         assert_eq!(second_impact(&[], &x[..1000], f64::NAN), None);
+    }
+
+    /// The normal equations and the residual, summed in lanes, against their definitions
+    /// (Σ x xᵀ and Σ x z[t] over the rows, z[t] − Σ c_i z[t − 1 − i]) on a noisy ringing.
+    #[test]
+    fn lane_sums_equal_the_definitions() {
+        const P: usize = DOUBLE_HIT_ORDER;
+        let mut z = ringing(&[(440.0, 1.0), (1250.0, 0.4), (3100.0, 0.2)], 48000.0, 700);
+        for (i, v) in z.iter_mut().enumerate() {
+            *v += 1e-3 * ((i * 7919 % 1013) as f64 / 1013.0 - 0.5);
+        }
+        let from = 2 * P + P;
+        let eq = NormalEquations::over(&z, from);
+        let scale = z.iter().map(|v| v * v).sum::<f64>();
+        for i in 0..P {
+            for j in 0..P {
+                let want: f64 = (from..z.len()).map(|t| z[t - 1 - i] * z[t - 1 - j]).sum();
+                assert!((eq.a[(i, j)] - want).abs() <= 1e-12 * scale, "a[{i},{j}]");
+            }
+            let want: f64 = (from..z.len()).map(|t| z[t - 1 - i] * z[t]).sum();
+            assert!((eq.b[i] - want).abs() <= 1e-12 * scale, "b[{i}]");
+        }
+        let coef = eq.solve().unwrap();
+        let residual = predict_residual(&z, &coef);
+        assert_eq!(residual.len(), z.len() - P);
+        for t in P..z.len() {
+            let predicted: f64 = (0..P).map(|i| coef[i] * z[t - 1 - i]).sum();
+            let want = z[t] - predicted;
+            assert!(
+                (residual[t - P] - want).abs() <= 1e-12,
+                "t {t}: {} vs {want}",
+                residual[t - P]
+            );
+        }
     }
 }
