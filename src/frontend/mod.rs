@@ -54,6 +54,29 @@ pub trait FrameSink {
     /// Told before `frames` frames come at once (a buffered bank emitting a whole decay), so
     /// that the sink can make room for them in one step.
     fn expect_frames(&mut self, _frames: usize) {}
+
+    /// A whole decay's frames at once (a buffered bank): frame k's band b is
+    /// `energy[k · bands + b]` and `frequency_hz[k · bands + b]`, and band b takes part up to
+    /// frame `band_frames[b]` (exclusive; `bands` = `band_frames.len()`). The same as one
+    /// [`FrameSink::frame`] per frame, in order, with `active` marking the bands still in;
+    /// a sink may take them in bulk.
+    fn frames(&mut self, energy: &[f64], frequency_hz: &[f64], band_frames: &[usize]) {
+        let nb = band_frames.len();
+        if nb == 0 {
+            return;
+        }
+        let mut active = vec![true; nb];
+        for k in 0..energy.len() / nb {
+            for (a, &end) in active.iter_mut().zip(band_frames) {
+                *a = k < end;
+            }
+            self.frame(Frame {
+                energy: &energy[k * nb..(k + 1) * nb],
+                frequency_hz: &frequency_hz[k * nb..(k + 1) * nb],
+                active: (!active.iter().all(|a| *a)).then_some(active.as_slice()),
+            });
+        }
+    }
 }
 
 impl<F: FnMut(Frame<'_>)> FrameSink for F {
@@ -288,17 +311,6 @@ pub(crate) fn emit_band_frames(
     if nb == 0 {
         return;
     }
-    let n_frames = energy.len() / nb;
-    sink.expect_frames(n_frames);
-    let mut active = vec![true; nb];
-    for k in 0..n_frames {
-        for (a, &end) in active.iter_mut().zip(band_frames) {
-            *a = k < end;
-        }
-        sink.frame(Frame {
-            energy: &energy[k * nb..(k + 1) * nb],
-            frequency_hz: &frequency_hz[k * nb..(k + 1) * nb],
-            active: (!active.iter().all(|a| *a)).then_some(active.as_slice()),
-        });
-    }
+    sink.expect_frames(energy.len() / nb);
+    sink.frames(energy, frequency_hz, band_frames);
 }
