@@ -160,10 +160,8 @@ impl DecayEstimator for OnlineSchroeder {
     }
 
     fn reserve_frames(&mut self, frames: usize) {
-        take_spare_history(&mut self.energies);
-        take_spare_history(&mut self.frequencies_hz);
-        self.energies.reserve(frames);
-        self.frequencies_hz.reserve(frames);
+        reserve_history(&mut self.energies, frames);
+        reserve_history(&mut self.frequencies_hz, frames);
     }
 
     fn release(&mut self) {
@@ -209,16 +207,36 @@ pub(crate) fn give_back_history(mut history: Vec<f64>) {
 
 /// Gives `history`, if it holds no memory, the one given back last on this thread (empty).
 pub(crate) fn take_spare_history(history: &mut Vec<f64>) {
-    if history.capacity() > 0 {
+    reserve_history(history, 0);
+}
+
+/// Makes room in `history` for `additional` more values, in memory given back earlier on this
+/// thread where a spare is large enough (then the values held so far move into it and its own
+/// memory goes to the pool); a history without memory takes the last spare in any case. Fresh
+/// memory only when no spare fits: growing a short history into new memory while the pool held
+/// large ones made each decay fault in new pages.
+pub(crate) fn reserve_history(history: &mut Vec<f64>, additional: usize) {
+    let need = history.len() + additional;
+    if history.capacity() >= need && history.capacity() > 0 {
         return;
     }
     let spare = SPARE_HISTORIES
-        .try_with(|spare| spare.try_borrow_mut().ok().and_then(|mut s| s.pop()))
+        .try_with(|spare| {
+            let mut spare = spare.try_borrow_mut().ok()?;
+            let fit = spare.iter().rposition(|s| s.capacity() >= need);
+            match fit {
+                Some(i) => Some(spare.swap_remove(i)),
+                None if history.capacity() == 0 => spare.pop(),
+                None => None,
+            }
+        })
         .ok()
         .flatten();
-    if let Some(spare) = spare {
-        *history = spare;
+    if let Some(mut spare) = spare {
+        spare.extend_from_slice(history);
+        give_back_history(std::mem::replace(history, spare));
     }
+    history.reserve(additional);
 }
 
 /// The first frame of a band's decay proper: the first whose energy comes within

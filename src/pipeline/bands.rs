@@ -156,7 +156,22 @@ impl<E: DecayEstimator> BandTrackers<E> {
         self.estimators
             .iter_mut()
             .for_each(|e| e.reserve_frames(frames));
-        self.cumulative.iter_mut().for_each(|c| c.reserve(frames));
+        self.cumulative
+            .iter_mut()
+            .for_each(|c| crate::decay::schroeder::reserve_history(c, frames));
+    }
+
+    /// Empties a running sum to its leading 0, in memory given back earlier on this thread if
+    /// it has none of its own (the histories' pool: taking fresh memory for the sums while
+    /// giving theirs to the pool made every decay fault in new pages).
+    fn restart_sum(c: &mut Vec<f64>) {
+        if c.capacity() <= 1 {
+            // Only the leading 0 of a new tracker: memory from the pool instead.
+            *c = Vec::new();
+        }
+        c.clear();
+        crate::decay::schroeder::take_spare_history(c);
+        c.push(0.0);
     }
 
     /// Like [`BandTrackers::reset`], and gives the histories' memory back to this thread: a long
@@ -165,7 +180,8 @@ impl<E: DecayEstimator> BandTrackers<E> {
         self.reset();
         self.estimators.iter_mut().for_each(|e| e.release());
         for c in &mut self.cumulative {
-            crate::decay::schroeder::give_back_history(std::mem::replace(c, vec![0.0]));
+            // Empty, without memory, until the next decay's reset takes some from the pool.
+            crate::decay::schroeder::give_back_history(std::mem::take(c));
         }
     }
 
@@ -176,7 +192,7 @@ impl<E: DecayEstimator> BandTrackers<E> {
             e.reserve_frames(0);
         });
         self.peak.iter_mut().for_each(|p| *p = 0.0);
-        self.cumulative.iter_mut().for_each(|c| c.truncate(1));
+        self.cumulative.iter_mut().for_each(Self::restart_sum);
         self.frames = 0;
         self.ended = false;
     }
@@ -205,6 +221,9 @@ impl<E: DecayEstimator> BandTrackers<E> {
             }
             self.frames += 1;
             for (b, c) in self.cumulative.iter_mut().enumerate() {
+                if c.is_empty() {
+                    Self::restart_sum(c);
+                }
                 let last = c[c.len() - 1];
                 let e = if k < band_frames[b] {
                     row[b]
@@ -242,6 +261,9 @@ impl<E: DecayEstimator> BandTrackers<E> {
         }
         self.frames += 1;
         for (k, (c, &e)) in self.cumulative.iter_mut().zip(frame.energy).enumerate() {
+            if c.is_empty() {
+                Self::restart_sum(c);
+            }
             let last = c[c.len() - 1];
             // A band past its own end (buffered banks) repeats its last frame: neutral.
             let e = if frame.active.is_some_and(|a| !a[k]) {
