@@ -10,13 +10,18 @@
 
 use std::sync::Arc;
 
-use realfft::{RealFftPlanner, RealToComplex};
+use realfft::RealToComplex;
 use rustfft::num_complex::Complex;
 
 mod kernels;
+mod tables;
 
 use kernels::{
     band_energy_and_peak, power_spectrum, unpack_pair_powers, window_and_zero_pad, window_pair,
+};
+use tables::{
+    memoized_flat_gain, shared_band_bins, shared_complex_plan, shared_hann, shared_plan,
+    FlatGainKey,
 };
 
 use super::simd::Isa;
@@ -338,79 +343,6 @@ fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R {
     })
 }
 
-/// A table shared by every front end of the process, one entry per key.
-type SharedTables<K, V> = std::sync::OnceLock<std::sync::Mutex<std::collections::HashMap<K, V>>>;
-
-/// The entry of `key` in `tables`, made by `make` the first time (made afresh, unshared, if a
-/// panic elsewhere poisoned the lock).
-fn shared<K: Eq + std::hash::Hash, V: Clone>(
-    tables: &SharedTables<K, V>,
-    key: K,
-    make: impl FnOnce() -> V,
-) -> V {
-    match tables.get_or_init(Default::default).lock() {
-        Ok(mut cache) => cache.entry(key).or_insert_with(make).clone(),
-        Err(_) => make(),
-    }
-}
-
-/// The periodic Hann window of `len` samples, made once per length in the process.
-fn shared_hann(len: usize) -> Arc<[f64]> {
-    static WINDOWS: SharedTables<usize, Arc<[f64]>> = std::sync::OnceLock::new();
-    shared(&WINDOWS, len, || {
-        (0..len)
-            .map(|i| {
-                let s = (std::f64::consts::PI * i as f64 / len as f64).sin();
-                s * s
-            })
-            .collect()
-    })
-}
-
-/// FFT plans are shared by every front end of the process (one per length): planning costs more
-/// than a short decay's transforms, and a 64-channel run would otherwise plan 64 times.
-fn shared_plan(nfft: usize) -> Arc<dyn RealToComplex<f64>> {
-    static PLANNER: std::sync::OnceLock<std::sync::Mutex<RealFftPlanner<f64>>> =
-        std::sync::OnceLock::new();
-    let planner = PLANNER.get_or_init(|| std::sync::Mutex::new(RealFftPlanner::new()));
-    match planner.lock() {
-        Ok(mut p) => p.plan_fft_forward(nfft),
-        // A panic elsewhere while planning poisons the lock; a fresh planner is as good.
-        Err(_) => RealFftPlanner::new().plan_fft_forward(nfft),
-    }
-}
-
-/// Complex FFT plans for frame pairs, shared like [`shared_plan`].
-fn shared_complex_plan(nfft: usize) -> Arc<dyn rustfft::Fft<f64>> {
-    static PLANNER: std::sync::OnceLock<std::sync::Mutex<rustfft::FftPlanner<f64>>> =
-        std::sync::OnceLock::new();
-    let planner = PLANNER.get_or_init(|| std::sync::Mutex::new(rustfft::FftPlanner::new()));
-    match planner.lock() {
-        Ok(mut p) => p.plan_fft_forward(nfft),
-        Err(_) => rustfft::FftPlanner::new().plan_fft_forward(nfft),
-    }
-}
-
-/// The bins and weights of `bands`, made once per transform and band set in the process.
-fn shared_band_bins(bands: &[Band], bin_hz: f64, n_bins: usize) -> Arc<[BandBins]> {
-    type Key = (u64, usize, Vec<(u64, u64)>);
-    static TABLES: SharedTables<Key, Arc<[BandBins]>> = std::sync::OnceLock::new();
-    let key: Key = (
-        bin_hz.to_bits(),
-        n_bins,
-        bands
-            .iter()
-            .map(|b| (b.lo_hz.to_bits(), b.hi_hz.to_bits()))
-            .collect(),
-    );
-    shared(&TABLES, key, || {
-        bands
-            .iter()
-            .map(|b| band_weights(b, bin_hz, n_bins))
-            .collect()
-    })
-}
-
 /// Bin weights of `band`: the fraction of each bin's extent inside the band.
 fn band_weights(band: &Band, bin_hz: f64, n_bins: usize) -> BandBins {
     let lo_bin = ((band.lo_hz / bin_hz) - 0.5).floor().max(0.0) as usize;
@@ -595,32 +527,6 @@ impl FrontEnd for StftFrontEnd {
             super::simpson_flat_gain(|f_hz| self.mode_gain(band, f_hz, 0.0), lo_hz, hi_hz)
         })
     }
-}
-
-/// What a flat gain depends on: sample rate, window length, zero padding, the band's edges and
-/// the range's edges (as bits: the same inputs give the same number).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-struct FlatGainKey([u64; 7]);
-
-/// Flat gains kept at most (a run asks for a few per pair of bands; beyond, computed anew).
-const FLAT_GAIN_MEMO_ENTRIES: usize = 1 << 16;
-
-/// The flat gain of `key`, computed by `compute` the first time in the process.
-fn memoized_flat_gain(key: FlatGainKey, compute: impl FnOnce() -> f64) -> f64 {
-    type Memo = std::sync::Mutex<std::collections::HashMap<FlatGainKey, f64>>;
-    static MEMO: std::sync::OnceLock<Memo> = std::sync::OnceLock::new();
-    let memo = MEMO.get_or_init(Default::default);
-    if let Some(g) = memo.lock().ok().and_then(|m| m.get(&key).copied()) {
-        return g;
-    }
-    // Computed outside the lock: two threads may both compute it, to the same value.
-    let g = compute();
-    if let Ok(mut m) = memo.lock() {
-        if m.len() < FLAT_GAIN_MEMO_ENTRIES {
-            m.insert(key, g);
-        }
-    }
-    g
 }
 
 #[cfg(test)]
