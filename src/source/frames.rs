@@ -216,19 +216,10 @@ impl<R: Read> FrameReader<R> {
         }
     }
 
-    /// Like [`FrameReader::new`], decoding from `mapped` bytes instead of reading `reader`.
-    pub(crate) fn from_mapped(
-        reader: R,
-        mapped: super::mapped::MappedBytes,
-        codec: Codec,
-        channels: usize,
-        scale: f64,
-        announced_bytes: Option<u64>,
-        what: String,
-    ) -> Self {
-        let mut frames = Self::new(reader, codec, channels, scale, announced_bytes, what);
-        frames.mapped = Some((mapped, 0));
-        frames
+    /// This reader decoding from `mapped` bytes (the same input, mapped) instead of reading.
+    pub(crate) fn decoding_from(mut self, mapped: super::mapped::MappedBytes) -> Self {
+        self.mapped = Some((mapped, 0));
+        self
     }
 
     /// Whether the input is decoded from a mapped file.

@@ -158,11 +158,12 @@ impl<R: Read + Send> RawSource<R> {
                 sample_rate_hz: fs_hz,
                 channel_names: (0..channels).map(|k| format!("ch{k}")).collect(),
             },
-            frames: match mapped {
-                Some(m) => {
-                    FrameReader::from_mapped(reader, m, format.codec(), channels, 1.0, None, what)
+            frames: {
+                let frames = FrameReader::new(reader, format.codec(), channels, 1.0, None, what);
+                match mapped {
+                    Some(m) => frames.decoding_from(m),
+                    None => frames,
                 }
-                None => FrameReader::new(reader, format.codec(), channels, 1.0, None, what),
             },
         })
     }
