@@ -190,7 +190,7 @@ thread_local! {
 /// Histories one thread keeps for reuse at most (more are freed).
 const SPARE_HISTORIES_MAX: usize = 1024;
 
-/// Keeps `history`'s memory for the next decay on this thread ([`take_spare_history`]).
+/// Keeps `history`'s memory for the next decay on this thread ([`reserve_history`]).
 pub(crate) fn give_back_history(mut history: Vec<f64>) {
     if history.capacity() == 0 {
         return;
@@ -203,11 +203,6 @@ pub(crate) fn give_back_history(mut history: Vec<f64>) {
             }
         }
     });
-}
-
-/// Gives `history`, if it holds no memory, the one given back last on this thread (empty).
-pub(crate) fn take_spare_history(history: &mut Vec<f64>) {
-    reserve_history(history, 0);
 }
 
 /// Makes room in `history` for `additional` more values, in memory given back earlier on this

@@ -85,6 +85,48 @@ pub(super) fn band_mode_gain(
         .sum()
 }
 
+/// What the closed form needs of a Hann window of `n` samples and a decay of `a` per sample.
+struct DecayingHann {
+    nf: f64,
+    r: f64,
+    r_n: f64,
+    /// (1 − r)² and (1 − rⁿ)², without cancellation for small a.
+    one_minus_r_sqr: f64,
+    one_minus_rn_sqr: f64,
+    /// s = 2π/n, and sin, cos of s/2.
+    step: f64,
+    half_step_sin: f64,
+    half_step_cos: f64,
+}
+
+impl DecayingHann {
+    fn new(n: usize, a: f64) -> Self {
+        let nf = n as f64;
+        let step = 2.0 * std::f64::consts::PI / nf;
+        let (half_step_sin, half_step_cos) = (0.5 * step).sin_cos();
+        DecayingHann {
+            nf,
+            r: (-a).exp(),
+            r_n: (-a * nf).exp(),
+            one_minus_r_sqr: (-a).exp_m1().powi(2),
+            one_minus_rn_sqr: (-a * nf).exp_m1().powi(2),
+            step,
+            half_step_sin,
+            half_step_cos,
+        }
+    }
+
+    /// (1 − r)² + 4 r h²: with h = sin(θ/2), |1 − r e^{−jθ}|²; with h = cos(φ/2), |1 + r e^{−jφ}|².
+    fn sqr(&self, h: f64) -> f64 {
+        self.one_minus_r_sqr + 4.0 * self.r * h * h
+    }
+
+    /// r² sin⁴(s/2) = r² (1 − cos s)² / 4: the numerator's constant.
+    fn constant(&self) -> f64 {
+        self.r * self.r * self.half_step_sin.powi(4)
+    }
+}
+
 /// Σ_k w_k |H(k · bin_rad + shift)|², from the closed form of the module docs: per bin a few
 /// real products of half-angle sines and one division. A bin where a denominator vanishes
 /// (an undamped mode on the bin or on its neighbour's Hann zero) takes the limit instead
@@ -97,21 +139,14 @@ fn image_gain(
     a: f64,
     shift: f64,
 ) -> f64 {
-    let nf = n as f64;
-    let r = (-a).exp();
-    let r_n = (-a * nf).exp();
-    // (1 − r)² and (1 − rⁿ)² without cancellation for small a.
-    let one_minus_r_sqr = (-a).exp_m1().powi(2);
-    let one_minus_rn_sqr = (-a * nf).exp_m1().powi(2);
-    let step = 2.0 * std::f64::consts::PI / nf;
-    let (half_step_sin, half_step_cos) = (0.5 * step).sin_cos();
-    // r² sin⁴(s/2) = r² (1 − cos s)² / 4: the numerator's constant.
-    let constant = r * r * half_step_sin.powi(4);
+    let k = DecayingHann::new(n, a);
+    let (nf, r_n) = (k.nf, k.r_n);
+    let (half_step_sin, half_step_cos) = (k.half_step_sin, k.half_step_cos);
+    let constant = k.constant();
     // Per bin, φ/2 and nφ/2 advance by these angles.
     let (bin_sin, bin_cos) = (0.5 * bin_rad).sin_cos();
     let (bin_n_sin, bin_n_cos) = (0.5 * bin_rad * nf).sin_cos();
-    // |1 − r e^{−jθ}|² = (1 − r)² + 4 r sin²(θ/2).
-    let den = |half_sin: f64| one_minus_r_sqr + 4.0 * r * half_sin * half_sin;
+    let den = |half_sin: f64| k.sqr(half_sin);
     let mut total = 0.0;
     let (mut sin_half, mut cos_half) = (0.0, 1.0);
     let (mut sin_half_n, mut cos_half_n) = (0.0, 1.0);
@@ -139,12 +174,12 @@ fn image_gain(
         let (d0, d1, d2) = (den(sin_half), den(sin_below), den(sin_above));
         let h_sqr = if d0.min(d1).min(d2) < DEGENERATE_DEN_SQR {
             let phi = (first_bin + i) as f64 * bin_rad + shift;
-            degenerate_bin_sqr(phi, r, r_n, nf, step)
+            degenerate_bin_sqr(phi, &k)
         } else {
             // |N|² = |1 − rⁿ e^{−jnφ}|² and |1 + r e^{−jφ}|² = (1 − r)² + 4 r cos²(φ/2).
-            let numerator = (one_minus_rn_sqr + 4.0 * r_n * sin_half_n * sin_half_n)
+            let numerator = (k.one_minus_rn_sqr + 4.0 * r_n * sin_half_n * sin_half_n)
                 * constant
-                * (one_minus_r_sqr + 4.0 * r * cos_half * cos_half);
+                * k.sqr(cos_half);
             numerator / (d0 * d1 * d2)
         };
         total += wt * h_sqr;
@@ -199,8 +234,8 @@ fn image_gain_bound(
     if len == 0 {
         return Some(0.0);
     }
-    let nf = n as f64;
-    let step = TAU / nf;
+    let k = DecayingHann::new(n, a);
+    let step = k.step;
     // The bins' angles, reduced so that the first lies in (−π, π].
     let first = (first_bin as f64 * bin_rad + shift).rem_euclid(TAU);
     let first = if first > PI { first - TAU } else { first };
@@ -212,19 +247,11 @@ fn image_gain_bound(
         return None;
     }
     let distance = |i: usize| (first + i as f64 * bin_rad).abs();
-    let r = (-a).exp();
-    let r_n = (-a * nf).exp();
-    let one_minus_r_sqr = (-a).exp_m1().powi(2);
-    let half_step_sin = (0.5 * step).sin();
-    let constant = (1.0 + r_n).powi(2) * r * r * half_step_sin.powi(4);
-    let den = |theta: f64| {
-        let h = (0.5 * theta).sin();
-        one_minus_r_sqr + 4.0 * r * h * h
-    };
+    // |N|² ≤ (1 + rⁿ)².
+    let constant = (1.0 + k.r_n).powi(2) * k.constant();
+    let den = |theta: f64| k.sqr((0.5 * theta).sin());
     let at = |phi: f64| {
-        let c = (0.5 * phi).cos();
-        constant * (one_minus_r_sqr + 4.0 * r * c * c)
-            / (den(phi) * den(phi - step) * den(phi + step))
+        constant * k.sqr((0.5 * phi).cos()) / (den(phi) * den(phi - step) * den(phi + step))
     };
     // Runs of 1, 1, 2, 4, … bins from the near end.
     let mut total = 0.0;
@@ -250,7 +277,8 @@ fn image_gain_bound(
 
 /// |H(φ)|² where one of the three geometric sums' denominators vanishes: each sum evaluated
 /// on its own, a vanishing one replaced by its limit n.
-fn degenerate_bin_sqr(phi: f64, r: f64, r_n: f64, nf: f64, step: f64) -> f64 {
+fn degenerate_bin_sqr(phi: f64, k: &DecayingHann) -> f64 {
+    let (r, r_n, nf, step) = (k.r, k.r_n, k.nf, k.step);
     let one = Complex::new(1.0, 0.0);
     let numerator = one - r_n * Complex::from_polar(1.0, -phi * nf);
     let sum = |theta: f64| {

@@ -130,7 +130,8 @@ pub(super) struct BandTrackers<E: DecayEstimator = OnlineSchroeder> {
     peak: Vec<f64>,
     end_factor: f64,
     floor: Option<FloorEnd>,
-    /// Per band, the running sum of its frame energies (`[0]` = 0): quarter means in O(1).
+    /// Per band, the running sum of its frame energies (`[0]` = 0; empty, without memory,
+    /// between decays): quarter means in O(1).
     cumulative: Vec<Vec<f64>>,
     frames: usize,
     pub(super) ended: bool,
@@ -142,7 +143,7 @@ impl<E: DecayEstimator> BandTrackers<E> {
     pub(super) fn new(estimators: Vec<E>, end_drop_db: f64, floor: Option<FloorEnd>) -> Self {
         BandTrackers {
             peak: vec![0.0; estimators.len()],
-            cumulative: vec![vec![0.0]; if floor.is_some() { estimators.len() } else { 0 }],
+            cumulative: vec![Vec::new(); if floor.is_some() { estimators.len() } else { 0 }],
             estimators,
             end_factor: 10f64.powf(-end_drop_db / 10.0),
             floor,
@@ -165,13 +166,26 @@ impl<E: DecayEstimator> BandTrackers<E> {
     /// it has none of its own (the histories' pool: taking fresh memory for the sums while
     /// giving theirs to the pool made every decay fault in new pages).
     fn restart_sum(c: &mut Vec<f64>) {
-        if c.capacity() <= 1 {
-            // Only the leading 0 of a new tracker: memory from the pool instead.
-            *c = Vec::new();
-        }
         c.clear();
-        crate::decay::schroeder::take_spare_history(c);
+        crate::decay::schroeder::reserve_history(c, 0);
         c.push(0.0);
+    }
+
+    /// Adds one frame to every band's running sum; a band no longer `active` (buffered banks:
+    /// past its own end) repeats its last frame, which leaves the floor test neutral.
+    fn add_to_sums(&mut self, energy: &[f64], active: impl Fn(usize) -> bool) {
+        for (b, (c, &e)) in self.cumulative.iter_mut().zip(energy).enumerate() {
+            if c.is_empty() {
+                Self::restart_sum(c);
+            }
+            let last = c[c.len() - 1];
+            let e = if active(b) {
+                e
+            } else {
+                c.len().checked_sub(2).map_or(0.0, |i| last - c[i])
+            };
+            c.push(last + e);
+        }
     }
 
     /// Like [`BandTrackers::reset`], and gives the histories' memory back to this thread: a long
@@ -220,18 +234,7 @@ impl<E: DecayEstimator> BandTrackers<E> {
                 }
             }
             self.frames += 1;
-            for (b, c) in self.cumulative.iter_mut().enumerate() {
-                if c.is_empty() {
-                    Self::restart_sum(c);
-                }
-                let last = c[c.len() - 1];
-                let e = if k < band_frames[b] {
-                    row[b]
-                } else {
-                    c.len().checked_sub(2).map_or(0.0, |i| last - c[i])
-                };
-                c.push(last + e);
-            }
+            self.add_to_sums(row, |b| k < band_frames[b]);
             self.ended = (all_low && self.end_factor > 0.0) || self.on_floor();
             if self.ended {
                 taken = k + 1;
@@ -260,19 +263,7 @@ impl<E: DecayEstimator> BandTrackers<E> {
             all_low &= e <= self.peak[k] * self.end_factor;
         }
         self.frames += 1;
-        for (k, (c, &e)) in self.cumulative.iter_mut().zip(frame.energy).enumerate() {
-            if c.is_empty() {
-                Self::restart_sum(c);
-            }
-            let last = c[c.len() - 1];
-            // A band past its own end (buffered banks) repeats its last frame: neutral.
-            let e = if frame.active.is_some_and(|a| !a[k]) {
-                c.len().checked_sub(2).map_or(0.0, |i| last - c[i])
-            } else {
-                e
-            };
-            c.push(last + e);
-        }
+        self.add_to_sums(frame.energy, |b| frame.active.is_none_or(|a| a[b]));
         self.ended = (all_low && self.end_factor > 0.0) || self.on_floor();
     }
 
