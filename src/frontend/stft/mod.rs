@@ -10,19 +10,13 @@
 
 use std::sync::Arc;
 
-use realfft::RealToComplex;
-use rustfft::num_complex::Complex;
-
 mod kernels;
 mod tables;
+mod transform;
 
-use kernels::{
-    band_energy_and_peak, power_spectrum, unpack_pair_powers, window_and_zero_pad, window_pair,
-};
-use tables::{
-    memoized_flat_gain, shared_band_bins, shared_complex_plan, shared_hann, shared_plan,
-    FlatGainKey,
-};
+use kernels::band_energy_and_peak;
+use tables::{memoized_flat_gain, shared_band_bins, shared_hann, FlatGainKey};
+use transform::{with_frame_buffers, Transform};
 
 use super::simd::Isa;
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
@@ -81,11 +75,9 @@ pub struct StftFrontEnd {
     window: Arc<[f64]>,
     hop: usize,
     bin_hz: f64,
-    fft: Arc<dyn RealToComplex<f64>>,
-    /// For an odd FFT length, where a real transform costs a whole complex one: the complex
-    /// transform that takes two successive frames at once (one as the real part, one as the
-    /// imaginary part), used whenever both are in hand.
-    pair_fft: Option<Arc<dyn rustfft::Fft<f64>>>,
+    /// The FFT plans; for an odd FFT length, where a real transform costs a whole complex one,
+    /// two successive frames share one complex transform whenever both are in hand.
+    transform: Transform,
     pending: Vec<f64>,
     /// Where the next frame starts in `pending` (samples before it are spent; they are dropped
     /// once they outnumber a window, so that each sample is moved O(1) times).
@@ -153,7 +145,6 @@ impl StftFrontEnd {
             .max(1.0) as usize;
         let nfft = win_len * settings.zero_pad;
         let window = shared_hann(win_len);
-        let fft = shared_plan(nfft);
         let n_bins = nfft / 2 + 1;
         let bin_hz = sample_rate_hz / nfft as f64;
         let band_bins = shared_band_bins(bands, bin_hz, n_bins);
@@ -163,8 +154,7 @@ impl StftFrontEnd {
             window,
             hop,
             bin_hz,
-            fft,
-            pair_fft: (nfft % 2 == 1).then(|| shared_complex_plan(nfft)),
+            transform: Transform::new(nfft),
             pending: Vec::new(),
             next_frame: 0,
             energy: vec![0.0; bands.len()],
@@ -185,19 +175,34 @@ impl StftFrontEnd {
         self.window.len()
     }
 
+    /// The frame starting at `pending[start]`, emitted.
     fn compute_frame(&mut self, start: usize, sink: &mut dyn FrameSink) {
-        with_frame_buffers(|buffers| self.fill_frame(start, buffers));
+        let w = self.window.len();
+        with_frame_buffers(|buffers| {
+            let frame = &self.pending[start..start + w];
+            self.transform
+                .frame_power(self.isa, frame, &self.window, buffers);
+            self.take_bands(&buffers.power);
+        });
         self.emit(sink);
     }
 
-    /// The frames starting at `pending[start]` and one hop later, through one complex FFT.
-    fn compute_pair(
-        &mut self,
-        start: usize,
-        fft: &dyn rustfft::Fft<f64>,
-        sink: &mut dyn FrameSink,
-    ) {
-        with_frame_buffers(|buffers| self.fill_pair(start, fft, buffers, sink));
+    /// The frames starting at `pending[start]` and one hop later, through one transform; each
+    /// emitted as soon as its bands are read.
+    fn compute_pair(&mut self, start: usize, sink: &mut dyn FrameSink) {
+        let (w, second) = (self.window.len(), start + self.hop);
+        with_frame_buffers(|buffers| {
+            let (a, b) = (
+                &self.pending[start..start + w],
+                &self.pending[second..second + w],
+            );
+            self.transform
+                .pair_powers(self.isa, a, b, &self.window, buffers);
+            self.take_bands(&buffers.power);
+            self.emit(sink);
+            self.take_bands(&buffers.power_b);
+            self.emit(sink);
+        });
     }
 
     fn emit(&self, sink: &mut dyn FrameSink) {
@@ -206,54 +211,6 @@ impl StftFrontEnd {
             frequency_hz: &self.frequency_hz,
             active: None,
         });
-    }
-
-    /// The band energies and frequencies of the frame starting at `pending[start]`.
-    fn fill_frame(&mut self, start: usize, buffers: &mut FrameBuffers) {
-        let w = self.window.len();
-        buffers.fit(&*self.fft, None);
-        let FrameBuffers {
-            fft_in,
-            spectrum,
-            scratch,
-            power,
-            ..
-        } = buffers;
-        window_and_zero_pad(
-            self.isa,
-            fft_in,
-            &self.pending[start..start + w],
-            &self.window,
-        );
-        // Lengths are fixed at construction, so the FFT cannot fail.
-        let _ = self.fft.process_with_scratch(fft_in, spectrum, scratch);
-        power_spectrum(self.isa, power, spectrum);
-        self.take_bands(power);
-    }
-
-    /// Both frames of a pair, each emitted as soon as its bands are read.
-    fn fill_pair(
-        &mut self,
-        start: usize,
-        fft: &dyn rustfft::Fft<f64>,
-        buffers: &mut FrameBuffers,
-        sink: &mut dyn FrameSink,
-    ) {
-        let w = self.window.len();
-        buffers.fit(&*self.fft, Some(fft));
-        let second = start + self.hop;
-        window_pair(
-            &mut buffers.pair,
-            &self.pending[start..start + w],
-            &self.pending[second..second + w],
-            &self.window,
-        );
-        fft.process_with_scratch(&mut buffers.pair, &mut buffers.pair_scratch);
-        unpack_pair_powers(&buffers.pair, &mut buffers.power, &mut buffers.power_b);
-        self.take_bands(&buffers.power);
-        self.emit(sink);
-        self.take_bands(&buffers.power_b);
-        self.emit(sink);
     }
 
     /// Every band's energy and peak frequency from one frame's power spectrum.
@@ -289,58 +246,6 @@ impl StftFrontEnd {
             };
         }
     }
-}
-
-/// The buffers of one frame's transform (windowed frame, spectrum, FFT scratch, power). No frame
-/// keeps them, so one set per thread serves every channel that thread analyses and stays in the
-/// cache; one set per channel made the 48 kHz path memory-bound.
-#[derive(Default)]
-struct FrameBuffers {
-    fft_in: Vec<f64>,
-    spectrum: Vec<Complex<f64>>,
-    scratch: Vec<Complex<f64>>,
-    power: Vec<f64>,
-    /// A frame pair's packed input and transform (in place), its scratch, and the second
-    /// frame's power spectrum.
-    pair: Vec<Complex<f64>>,
-    pair_scratch: Vec<Complex<f64>>,
-    power_b: Vec<f64>,
-}
-
-impl FrameBuffers {
-    /// Sizes the buffers for `fft` and, with frame pairs, for `pair_fft` (a no-op when they
-    /// already fit).
-    fn fit(&mut self, fft: &dyn RealToComplex<f64>, pair_fft: Option<&dyn rustfft::Fft<f64>>) {
-        if self.fft_in.len() != fft.len() || self.scratch.len() != fft.get_scratch_len() {
-            self.fft_in = fft.make_input_vec();
-            self.spectrum = fft.make_output_vec();
-            self.scratch = fft.make_scratch_vec();
-            self.power = vec![0.0; self.spectrum.len()];
-        }
-        if let Some(pair) = pair_fft {
-            let zero = Complex::new(0.0, 0.0);
-            if self.pair.len() != pair.len() {
-                self.pair = vec![zero; pair.len()];
-                self.power_b = vec![0.0; self.power.len()];
-            }
-            if self.pair_scratch.len() != pair.get_inplace_scratch_len() {
-                self.pair_scratch = vec![zero; pair.get_inplace_scratch_len()];
-            }
-        }
-    }
-}
-
-thread_local! {
-    static FRAME_BUFFERS: std::cell::RefCell<FrameBuffers> = Default::default();
-}
-
-/// Runs `f` with this thread's frame buffers.
-fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R {
-    FRAME_BUFFERS.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut buffers) => f(&mut buffers),
-        // Only if a frame were computed inside another's (it is not): fresh buffers.
-        Err(_) => f(&mut FrameBuffers::default()),
-    })
 }
 
 /// Bin weights of `band`: the fraction of each bin's extent inside the band.
@@ -436,18 +341,14 @@ impl FrontEnd for StftFrontEnd {
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         self.pending.extend_from_slice(samples);
         let w = self.window.len();
-        // The plan handle is taken once per call, not per frame.
-        let pair_fft = self.pair_fft.clone();
+        let pairs = self.transform.pairs_frames();
         while self.next_frame + w <= self.pending.len() {
-            match &pair_fft {
-                Some(pair) if self.next_frame + self.hop + w <= self.pending.len() => {
-                    self.compute_pair(self.next_frame, pair.as_ref(), sink);
-                    self.next_frame += 2 * self.hop;
-                }
-                _ => {
-                    self.compute_frame(self.next_frame, sink);
-                    self.next_frame += self.hop;
-                }
+            if pairs && self.next_frame + self.hop + w <= self.pending.len() {
+                self.compute_pair(self.next_frame, sink);
+                self.next_frame += 2 * self.hop;
+            } else {
+                self.compute_frame(self.next_frame, sink);
+                self.next_frame += self.hop;
             }
         }
         if self.next_frame >= w {

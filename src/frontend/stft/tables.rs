@@ -4,6 +4,7 @@
 use std::sync::Arc;
 
 use realfft::{RealFftPlanner, RealToComplex};
+use rustfft::num_complex::Complex;
 
 use super::{band_weights, BandBins};
 use crate::frontend::Band;
@@ -59,6 +60,26 @@ pub(super) fn shared_complex_plan(nfft: usize) -> Arc<dyn rustfft::Fft<f64>> {
         Ok(mut p) => p.plan_fft_forward(nfft),
         Err(_) => rustfft::FftPlanner::new().plan_fft_forward(nfft),
     }
+}
+
+/// realfft's post-processing twiddles for a real FFT of even length `nfft`: e^{−2πik/nfft} / 2
+/// for k = 1 .. ⌈nfft/4⌉ (computed as realfft computes them, so the fused power pass gives its
+/// bits), made once per length in the process.
+pub(super) fn shared_half_twiddles(nfft: usize) -> Arc<[Complex<f64>]> {
+    static TWIDDLES: SharedTables<usize, Arc<[Complex<f64>]>> = std::sync::OnceLock::new();
+    shared(&TWIDDLES, nfft, || {
+        let count = if nfft.is_multiple_of(4) {
+            nfft / 4
+        } else {
+            nfft / 4 + 1
+        };
+        (1..count)
+            .map(|k| {
+                let angle = -2.0 * std::f64::consts::PI / nfft as f64 * k as f64;
+                Complex::new(angle.cos(), angle.sin()) * 0.5
+            })
+            .collect()
+    })
 }
 
 /// The bins and weights of `bands`, made once per transform and band set in the process.
