@@ -1,6 +1,7 @@
 //! The threads of a run: a reader hands each block to every worker over bounded channels; each
-//! worker owns the [`ChannelAnalyzer`]s of its channels (a panic in one channel stops that
-//! channel only); finished rows come back in stream order ([`super::order::RowOrder`]).
+//! worker owns the [`ChannelAnalyzer`]s of a contiguous run of channels (a panic in one channel
+//! stops that channel only) and, where the source leaves blocks encoded, decodes just those
+//! channels itself; finished rows come back in stream order ([`super::order::RowOrder`]).
 
 use std::sync::Arc;
 
@@ -11,6 +12,7 @@ use super::schema::StageTimes;
 use super::{AnalysisConfig, ChannelAnalyzer, FrontEndFactory, ResultRow, RunSummary};
 use crate::decay::Flag;
 use crate::error::{Error, Result};
+use crate::source::encoded::EncodedFrames;
 use crate::source::{Block, Source, SourceError};
 
 /// What a worker hands back after each block: finished rows per channel (index into the
@@ -35,9 +37,68 @@ pub struct RunOptions {
 /// Blocks alive at once at most: each worker's queue (4), the one it works on, the one read.
 const BLOCKS_IN_FLIGHT: f64 = 6.0;
 
+#[derive(Clone)]
 enum ToWorker {
     Block(Arc<Block>),
-    End { truncated: bool },
+    /// A block left in its stored encoding: each worker decodes its own channels.
+    Encoded(Arc<EncodedFrames>),
+    End {
+        truncated: bool,
+    },
+}
+
+/// The channels of each of `workers` workers: contiguous runs, as even as the count allows
+/// (their sizes differ by at most one). A worker decoding its run of an encoded block reads
+/// only its share of each frame.
+fn channel_shares(channels: usize, workers: usize) -> Vec<std::ops::Range<usize>> {
+    let workers = workers.clamp(1, channels.max(1));
+    let (base, extra) = (channels / workers, channels % workers);
+    let mut start = 0;
+    (0..workers)
+        .map(|w| {
+            let len = base + usize::from(w < extra);
+            start += len;
+            start - len..start
+        })
+        .collect()
+}
+
+/// The blocks a reader hands out, each reused once every worker is done with it, so that the
+/// hot path allocates nothing once the pipeline is full (a fresh block of a 64-channel stream
+/// is megabytes of new pages to fault in).
+struct BlockPool<T> {
+    handed_out: Vec<Arc<T>>,
+}
+
+impl<T: Default> BlockPool<T> {
+    fn new() -> Self {
+        BlockPool {
+            handed_out: Vec::new(),
+        }
+    }
+
+    /// A block no worker holds any more, or a new one.
+    fn take(&mut self) -> T {
+        match self
+            .handed_out
+            .iter()
+            .position(|b| Arc::strong_count(b) == 1)
+        {
+            // Only the reader holds pool handles, so a free block stays free.
+            Some(i) => Arc::try_unwrap(self.handed_out.swap_remove(i)).unwrap_or_default(),
+            None => T::default(),
+        }
+    }
+
+    /// Remembers a block handed out, to reuse once it is free.
+    fn keep(&mut self, block: Arc<T>) {
+        self.handed_out.push(block);
+        if self.handed_out.len() > BLOCKS_IN_FLIGHT as usize {
+            // More alive than the queues can hold: forget one handle (its memory goes when the
+            // workers drop it).
+            self.handed_out.remove(0);
+        }
+    }
 }
 
 /// Runs the whole analysis of `source`, calling `on_rows` with each batch of finished rows as soon
@@ -102,17 +163,22 @@ pub fn run_with(
         per_channel * n_channels as f64 + blocks,
     )?;
     let mut first = Some(first);
-    let mut groups: Vec<Vec<(usize, ChannelAnalyzer)>> = (0..workers).map(|_| Vec::new()).collect();
-    for (c, name) in info.channel_names.iter().enumerate() {
-        let fe = match first.take() {
-            Some(fe) => fe,
-            None => factory()?,
-        };
-        let mut an = ChannelAnalyzer::new(name.clone(), info.sample_rate_hz, fe, *config);
-        if options.profile_stages {
-            an.profile_stages();
+    let mut groups: Vec<WorkerChannels> = Vec::with_capacity(workers);
+    for range in channel_shares(n_channels, workers) {
+        let mut analyzers = Vec::with_capacity(range.len());
+        for c in range.clone() {
+            let fe = match first.take() {
+                Some(fe) => fe,
+                None => factory()?,
+            };
+            let name = info.channel_names[c].clone();
+            let mut an = ChannelAnalyzer::new(name, info.sample_rate_hz, fe, *config);
+            if options.profile_stages {
+                an.profile_stages();
+            }
+            analyzers.push((c, an));
         }
-        groups[c % workers].push((c, an));
+        groups.push(WorkerChannels { range, analyzers });
     }
     let (row_tx, row_rx) = bounded::<WorkerReport>(64);
     std::thread::scope(|scope| -> Result<RunSummary> {
@@ -128,36 +194,40 @@ pub fn run_with(
         let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
             let mut failure = None;
             let mut read_s = 0.0;
-            // Blocks handed out: any one every worker is done with is read into again, so
-            // that the hot path allocates nothing once the pipeline is full (a fresh block of
-            // a 64-channel stream is megabytes of new pages to fault in).
-            let mut pool: Vec<Arc<Block>> = Vec::new();
+            let mut blocks: BlockPool<Block> = BlockPool::new();
+            let mut encoded: BlockPool<EncodedFrames> = BlockPool::new();
+            // Left encoded while the source can (binary frames), decoded here otherwise.
+            let mut defer = true;
             loop {
-                let mut block = match pool.iter().position(|b| Arc::strong_count(b) == 1) {
-                    // Only this thread holds pool handles, so a free block stays free.
-                    Some(i) => Arc::try_unwrap(pool.swap_remove(i)).unwrap_or_default(),
-                    None => Block::default(),
-                };
-                // A recycled block's flags belong to its last samples (a source that does not
-                // check leaves them empty).
-                block.known_finite.clear();
                 let t0 = std::time::Instant::now();
-                let got = source.read_block(block_frames, &mut block);
+                let (got, message) = if defer {
+                    let mut frames = encoded.take();
+                    match source.read_encoded_block(block_frames, &mut frames) {
+                        Some(got) => {
+                            let frames = Arc::new(frames);
+                            encoded.keep(frames.clone());
+                            (got, ToWorker::Encoded(frames))
+                        }
+                        None => {
+                            defer = false;
+                            continue;
+                        }
+                    }
+                } else {
+                    let mut block = blocks.take();
+                    // A recycled block's flags belong to its last samples (a source that
+                    // does not check leaves them empty).
+                    block.known_finite.clear();
+                    let got = source.read_block(block_frames, &mut block);
+                    let block = Arc::new(block);
+                    blocks.keep(block.clone());
+                    (got, ToWorker::Block(block))
+                };
                 read_s += t0.elapsed().as_secs_f64();
                 match got {
                     Ok(true) => {
-                        let b = Arc::new(block);
-                        if worker_txs
-                            .iter()
-                            .any(|tx| tx.send(ToWorker::Block(b.clone())).is_err())
-                        {
+                        if !worker_txs.iter().all(|tx| tx.send(message.clone()).is_ok()) {
                             break;
-                        }
-                        pool.push(b);
-                        if pool.len() > BLOCKS_IN_FLIGHT as usize {
-                            // More alive than the queues can hold: forget one handle (its
-                            // memory goes when the workers drop it).
-                            pool.remove(0);
                         }
                     }
                     Ok(false) => break,
@@ -219,7 +289,8 @@ pub fn run_with(
         deliver(order.drain(), &mut summary);
         let (input_error, read_s) = reader.join().unwrap_or((None, 0.0));
         summary.input_error = input_error;
-        summary.stages.read_s = read_s;
+        // Plus the workers' decoding of encoded blocks (added with their reports).
+        summary.stages.read_s += read_s;
         // The front end's share is the analysis time not spent in the other two.
         if options.profile_stages {
             let st = &mut summary.stages;
@@ -242,11 +313,19 @@ pub fn run_with(
     })
 }
 
-fn worker(
-    mut group: Vec<(usize, ChannelAnalyzer)>,
-    rx: Receiver<ToWorker>,
-    row_tx: Sender<WorkerReport>,
-) {
+/// What one worker analyses: its run of channels and their analyzers, in channel order.
+struct WorkerChannels {
+    range: std::ops::Range<usize>,
+    analyzers: Vec<(usize, ChannelAnalyzer)>,
+}
+
+fn worker(group: WorkerChannels, rx: Receiver<ToWorker>, row_tx: Sender<WorkerReport>) {
+    let WorkerChannels {
+        range,
+        analyzers: mut group,
+    } = group;
+    // This worker's channels of the last encoded block, decoded (reused block to block).
+    let mut decoded = Block::default();
     use std::panic::{catch_unwind, AssertUnwindSafe};
     // A panic in one channel's analysis (a bug) stops that channel only: its rows say
     // `internal_error` and the channels sharing this worker go on.
@@ -273,15 +352,27 @@ fn worker(
             times: StageTimes::default(),
         };
         let t0 = std::time::Instant::now();
+        // Where this worker's channels are in the block it analyses (decoded ones start at 0).
+        let (block, offset): (&Block, usize) = match &msg {
+            ToWorker::Block(block) => (block, 0),
+            ToWorker::Encoded(frames) => {
+                frames.decode_into(range.clone(), &mut decoded);
+                report.times.read_s += t0.elapsed().as_secs_f64();
+                (&decoded, range.start)
+            }
+            ToWorker::End { .. } => (&decoded, 0),
+        };
         for (i, (c, an)) in group.iter_mut().enumerate() {
             let rows = match &msg {
-                ToWorker::Block(block) => match block.channels.get(*c) {
-                    Some(samples) => {
-                        let finite = block.is_known_finite(*c);
-                        guarded(i, an, &|an, o| an.push_checked(samples, finite, o))
+                ToWorker::Block(_) | ToWorker::Encoded(_) => {
+                    match block.channels.get(*c - offset) {
+                        Some(samples) => {
+                            let finite = block.is_known_finite(*c - offset);
+                            guarded(i, an, &|an, o| an.push_checked(samples, finite, o))
+                        }
+                        None => Vec::new(),
                     }
-                    None => Vec::new(),
-                },
+                }
                 ToWorker::End { truncated } => {
                     let t = *truncated;
                     let rows = guarded(i, an, &|an, o| an.finish(t, o));
@@ -301,9 +392,33 @@ fn worker(
             }
             report.watermarks.push((*c, an.watermark()));
         }
-        report.times.analysis_s = t0.elapsed().as_secs_f64();
+        report.times.analysis_s = t0.elapsed().as_secs_f64() - report.times.read_s;
         if row_tx.send(report).is_err() {
             return;
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::channel_shares;
+
+    /// The shares cover every channel once, in order, in runs whose sizes differ by at most
+    /// one; there are never more runs than channels, and 64 channels on 2 workers split into
+    /// the two halves (runs of whole groups of eight, for the vector decoder).
+    #[test]
+    fn channel_shares_are_contiguous_and_even() {
+        for channels in 1..40 {
+            for workers in 1..6 {
+                let shares = channel_shares(channels, workers);
+                assert_eq!(shares.len(), workers.min(channels));
+                let flat: Vec<usize> = shares.iter().cloned().flatten().collect();
+                assert_eq!(flat, (0..channels).collect::<Vec<_>>());
+                let sizes: Vec<usize> = shares.iter().map(|r| r.len()).collect();
+                let (lo, hi) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
+                assert!(hi - lo <= 1 && *lo >= 1, "{channels} ch, {workers}: {sizes:?}");
+            }
+        }
+        assert_eq!(channel_shares(64, 2), vec![0..32, 32..64]);
     }
 }

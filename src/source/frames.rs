@@ -4,6 +4,14 @@
 
 use std::io::{self, Read};
 
+use std::sync::Arc;
+
+#[cfg(target_arch = "x86_64")]
+#[path = "frames_f32_avx2.rs"]
+mod f32_avx2;
+
+use super::encoded::EncodedFrames;
+use super::mapped::MappedBytes;
 use super::{Block, SourceError};
 use crate::frontend::simd::Isa;
 
@@ -82,14 +90,45 @@ fn deinterleave(
     channels: &mut [Vec<f64>],
     known_finite: &mut Vec<bool>,
 ) {
-    deinterleave_with(Isa::detect(), codec, bytes, scale, channels, known_finite)
+    let layout = FrameLayout::whole(channels.len());
+    deinterleave_with(
+        Isa::detect(),
+        codec,
+        bytes,
+        layout,
+        scale,
+        channels,
+        known_finite,
+    )
 }
 
-/// [`deinterleave`] with the instruction set given.
-fn deinterleave_with(
+/// Which channels of each stored frame a decode takes: `channels.len()` of them from
+/// `first` on, in frames of `frame_channels`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct FrameLayout {
+    /// Channels per stored frame.
+    pub(crate) frame_channels: usize,
+    /// The first channel decoded.
+    pub(crate) first: usize,
+}
+
+impl FrameLayout {
+    /// Every channel of frames of `channels`.
+    pub(crate) fn whole(channels: usize) -> Self {
+        FrameLayout {
+            frame_channels: channels,
+            first: 0,
+        }
+    }
+}
+
+/// [`deinterleave`] with the instruction set given, of the channels `layout.first ..
+/// layout.first + channels.len()` of frames of `layout.frame_channels` (which must hold them).
+pub(crate) fn deinterleave_with(
     isa: Isa,
     codec: Codec,
     bytes: &[u8],
+    layout: FrameLayout,
     scale: f64,
     channels: &mut [Vec<f64>],
     known_finite: &mut Vec<bool>,
@@ -97,12 +136,12 @@ fn deinterleave_with(
     #[inline(always)]
     fn run<const B: usize>(
         bytes: &[u8],
+        layout: FrameLayout,
         scale: f64,
         channels: &mut [Vec<f64>],
         decode: impl Fn([u8; B]) -> f64,
     ) {
-        let n_ch = channels.len();
-        let fb = n_ch * B;
+        let fb = layout.frame_channels * B;
         let frames = bytes.len() / fb.max(1);
         for ch in channels.iter_mut() {
             ch.clear();
@@ -112,22 +151,25 @@ fn deinterleave_with(
             let t1 = (t0 + TILE_FRAMES).min(frames);
             let tile = &bytes[t0 * fb..t1 * fb];
             for (c, ch) in channels.iter_mut().enumerate() {
+                let at = (layout.first + c) * B;
                 // An exact-size iterator: no zero fill, no capacity check per sample.
                 ch.extend(tile.chunks_exact(fb).map(|frame| {
                     let mut raw = [0u8; B];
-                    raw.copy_from_slice(&frame[c * B..c * B + B]);
+                    raw.copy_from_slice(&frame[at..at + B]);
                     decode(raw) * scale
                 }));
             }
         }
     }
     known_finite.clear();
+    debug_assert!(layout.first + channels.len() <= layout.frame_channels);
     // A finite value times a scale of magnitude at most 1 stays finite (it cannot overflow).
     let scale_keeps_finite = scale.is_finite() && scale.abs() <= 1.0;
     #[cfg(target_arch = "x86_64")]
     if codec == Codec::F32 && channels.len().is_multiple_of(8) && isa != Isa::Generic {
-        // SAFETY: `Isa::detect` found AVX2 on this CPU; the channel count is a multiple of 8.
-        let finite = unsafe { f32_by_eights_avx2(bytes, scale, channels) };
+        // SAFETY: `Isa::detect` found AVX2 on this CPU; the channel count is a multiple of 8
+        // and the channels lie in the frame.
+        let finite = unsafe { f32_avx2::f32_by_eights_avx2(bytes, layout, scale, channels) };
         if scale_keeps_finite {
             *known_finite = finite;
         }
@@ -138,14 +180,20 @@ fn deinterleave_with(
         known_finite.resize(channels.len(), true);
     }
     match codec {
-        Codec::U8 => run::<1>(bytes, scale, channels, |b| f64::from(b[0]) - 128.0),
-        Codec::Int(2) => run::<2>(bytes, scale, channels, |b| f64::from(i16::from_le_bytes(b))),
-        Codec::Int(3) => run::<3>(bytes, scale, channels, |b| {
+        Codec::U8 => run::<1>(bytes, layout, scale, channels, |b| f64::from(b[0]) - 128.0),
+        Codec::Int(2) => run::<2>(bytes, layout, scale, channels, |b| {
+            f64::from(i16::from_le_bytes(b))
+        }),
+        Codec::Int(3) => run::<3>(bytes, layout, scale, channels, |b| {
             f64::from(i32::from_le_bytes([0, b[0], b[1], b[2]]) >> 8)
         }),
-        Codec::Int(_) => run::<4>(bytes, scale, channels, |b| f64::from(i32::from_le_bytes(b))),
-        Codec::F32 => run::<4>(bytes, scale, channels, |b| f64::from(f32::from_le_bytes(b))),
-        Codec::F64 => run::<8>(bytes, scale, channels, f64::from_le_bytes),
+        Codec::Int(_) => run::<4>(bytes, layout, scale, channels, |b| {
+            f64::from(i32::from_le_bytes(b))
+        }),
+        Codec::F32 => run::<4>(bytes, layout, scale, channels, |b| {
+            f64::from(f32::from_le_bytes(b))
+        }),
+        Codec::F64 => run::<8>(bytes, layout, scale, channels, f64::from_le_bytes),
     }
 }
 
@@ -186,7 +234,22 @@ pub(crate) struct FrameReader<R> {
     what: String,
     /// The input as a mapped file, and how many of its bytes were decoded: then `reader` and
     /// `buf` are unused and blocks are decoded straight from the mapping.
-    mapped: Option<(super::mapped::MappedBytes, usize)>,
+    mapped: Option<(Arc<MappedBytes>, usize)>,
+}
+
+/// Where the whole frames of one read are: in the reader's buffer, or a range of the mapping.
+enum FrameBytes<'a> {
+    Buffered(&'a [u8]),
+    Mapped(&'a Arc<MappedBytes>, std::ops::Range<usize>),
+}
+
+impl FrameBytes<'_> {
+    fn bytes(&self) -> &[u8] {
+        match self {
+            FrameBytes::Buffered(b) => b,
+            FrameBytes::Mapped(m, range) => &m.bytes()[range.clone()],
+        }
+    }
 }
 
 impl<R: Read> FrameReader<R> {
@@ -217,8 +280,8 @@ impl<R: Read> FrameReader<R> {
     }
 
     /// This reader decoding from `mapped` bytes (the same input, mapped) instead of reading.
-    pub(crate) fn decoding_from(mut self, mapped: super::mapped::MappedBytes) -> Self {
-        self.mapped = Some((mapped, 0));
+    pub(crate) fn decoding_from(mut self, mapped: MappedBytes) -> Self {
+        self.mapped = Some((Arc::new(mapped), 0));
         self
     }
 
@@ -280,6 +343,39 @@ impl<R: Read> FrameReader<R> {
             ch.clear();
         }
         block.known_finite.clear();
+        let (codec, scale) = (self.codec, self.scale);
+        self.next_frames(max_frames, |frames| {
+            deinterleave(
+                codec,
+                frames.bytes(),
+                scale,
+                &mut block.channels,
+                &mut block.known_finite,
+            )
+        })
+    }
+
+    /// [`FrameReader::read_block`] with the frames left encoded in `out`, for the thread that
+    /// analyses them to decode (a mapped file's frames are not even copied).
+    pub(crate) fn read_encoded_block(
+        &mut self,
+        max_frames: usize,
+        out: &mut EncodedFrames,
+    ) -> Result<bool, SourceError> {
+        out.reset(self.codec, self.scale, self.channels);
+        self.next_frames(max_frames, |frames| match frames {
+            FrameBytes::Buffered(bytes) => out.set_copied(bytes),
+            FrameBytes::Mapped(map, range) => out.set_mapped(map.clone(), range),
+        })
+    }
+
+    /// The state machine of both reads: up to `max_frames` whole frames handed to `take`,
+    /// `Ok(false)` at the end, every complete frame before a `Truncated` error.
+    fn next_frames(
+        &mut self,
+        max_frames: usize,
+        take: impl FnOnce(FrameBytes<'_>),
+    ) -> Result<bool, SourceError> {
         if let Some(e) = self.pending.take() {
             return Err(e);
         }
@@ -291,7 +387,7 @@ impl<R: Read> FrameReader<R> {
         // whatever the caller asks; fewer frames than asked is within the contract.
         let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
         if self.mapped.is_some() {
-            return self.read_mapped_block(max_frames.clamp(1, cap_frames), block);
+            return self.next_mapped_frames(max_frames.clamp(1, cap_frames), take);
         }
         let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb);
         if let Some(n) = self.announced_bytes {
@@ -331,13 +427,7 @@ impl<R: Read> FrameReader<R> {
                 self.pending = Some(self.truncation(partial, whole));
             }
         }
-        deinterleave(
-            self.codec,
-            &self.buf[..whole * fb],
-            self.scale,
-            &mut block.channels,
-            &mut block.known_finite,
-        );
+        take(FrameBytes::Buffered(&self.buf[..whole * fb]));
         self.buf.copy_within(whole * fb..self.have, 0);
         self.have = partial;
         self.frames_read += whole as u64;
@@ -347,27 +437,22 @@ impl<R: Read> FrameReader<R> {
         Ok(true)
     }
 
-    /// [`FrameReader::read_block`] from the mapped file: up to `frames` frames decoded in place,
+    /// [`FrameReader::next_frames`] from the mapped file: up to `frames` frames taken in place,
     /// with the same end, truncation and empty-input reports as the stream.
-    fn read_mapped_block(&mut self, frames: usize, block: &mut Block) -> Result<bool, SourceError> {
+    fn next_mapped_frames(
+        &mut self,
+        frames: usize,
+        take: impl FnOnce(FrameBytes<'_>),
+    ) -> Result<bool, SourceError> {
         let fb = self.frame_bytes();
         let Some((mapped, used)) = &mut self.mapped else {
             return Ok(false);
         };
-        let all = mapped.bytes();
-        let end = self
-            .announced_bytes
-            .map_or(all.len(), |n| all.len().min(n as usize));
+        let all = mapped.bytes().len();
+        let end = self.announced_bytes.map_or(all, |n| all.min(n as usize));
         let rest = end - *used;
         let whole = (rest / fb).min(frames);
-        let bytes = &all[*used..*used + whole * fb];
-        deinterleave(
-            self.codec,
-            bytes,
-            self.scale,
-            &mut block.channels,
-            &mut block.known_finite,
-        );
+        take(FrameBytes::Mapped(mapped, *used..*used + whole * fb));
         *used += whole * fb;
         self.bytes_read = *used as u64;
         if end - *used < fb {
@@ -387,113 +472,6 @@ impl<R: Read> FrameReader<R> {
         }
         Ok(true)
     }
-}
-
-/// [`deinterleave`] of 32-bit floats when the channels come in groups of eight (the common
-/// 8/16/32/64-channel arrays): per group, eight frames at a time are loaded as eight vectors,
-/// transposed in registers, widened to f64 and stored, four samples per instruction. The
-/// scalar path picks one sample per channel per frame and was a tenth of a whole 48 kHz run.
-/// The same conversion and product as the scalar path: identical bits.
-///
-/// Returns per channel whether every input value was finite: the exponent bits of the eight
-/// loaded vectors are compared on the way (an AND, a compare and an OR per vector), which
-/// spares the analysis its own pass over the decoded samples.
-///
-/// # Safety
-/// The CPU must have AVX2, and `channels.len()` must be a multiple of 8.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn f32_by_eights_avx2(bytes: &[u8], scale: f64, channels: &mut [Vec<f64>]) -> Vec<bool> {
-    use std::arch::x86_64::*;
-    let n_ch = channels.len();
-    debug_assert!(n_ch > 0 && n_ch.is_multiple_of(8));
-    let frames = bytes.len() / (4 * n_ch);
-    let whole = frames / 8 * 8;
-    for ch in channels.iter_mut() {
-        ch.clear();
-        ch.reserve(frames);
-    }
-    let src = bytes.as_ptr();
-    let factor = _mm256_set1_pd(scale);
-    // An f32 is not finite exactly when its exponent bits are all ones.
-    let exponent = _mm256_set1_epi32(0x7f80_0000);
-    // Per group of eight channels, bit j set: channel 8g + j held a non-finite value.
-    let mut non_finite = vec![0u8; n_ch / 8];
-    for t0 in (0..whole).step_by(TILE_FRAMES) {
-        let t1 = (t0 + TILE_FRAMES).min(whole);
-        for (g, group) in channels.chunks_exact_mut(8).enumerate() {
-            let out: [*mut f64; 8] = std::array::from_fn(|j| group[j].as_mut_ptr());
-            let mut bad = _mm256_setzero_si256();
-            for f in (t0..t1).step_by(8) {
-                // r[i] = channels 8g..8g+8 of frame f + i (in bounds: f + 8 <= frames).
-                let r: [__m256; 8] = std::array::from_fn(|i| {
-                    _mm256_loadu_ps(src.add(((f + i) * n_ch + 8 * g) * 4) as *const f32)
-                });
-                for v in &r {
-                    let e = _mm256_and_si256(_mm256_castps_si256(*v), exponent);
-                    bad = _mm256_or_si256(bad, _mm256_cmpeq_epi32(e, exponent));
-                }
-                let c = transpose_8x8(r);
-                for (j, &v) in c.iter().enumerate() {
-                    let lo = _mm256_cvtps_pd(_mm256_castps256_ps128(v));
-                    let hi = _mm256_cvtps_pd(_mm256_extractf128_ps::<1>(v));
-                    // In bounds: `reserve(frames)` above, f + 8 <= frames.
-                    _mm256_storeu_pd(out[j].add(f), _mm256_mul_pd(lo, factor));
-                    _mm256_storeu_pd(out[j].add(f + 4), _mm256_mul_pd(hi, factor));
-                }
-            }
-            non_finite[g] |= _mm256_movemask_ps(_mm256_castsi256_ps(bad)) as u8;
-        }
-    }
-    let mut finite = Vec::with_capacity(n_ch);
-    for (c, ch) in channels.iter_mut().enumerate() {
-        // The first `whole` samples were written above.
-        ch.set_len(whole);
-        let mut tail_finite = true;
-        ch.extend((whole..frames).map(|f| {
-            let at = (f * n_ch + c) * 4;
-            let mut raw = [0u8; 4];
-            raw.copy_from_slice(&bytes[at..at + 4]);
-            let v = f32::from_le_bytes(raw);
-            tail_finite &= v.is_finite();
-            f64::from(v) * scale
-        }));
-        finite.push(tail_finite && non_finite[c / 8] & (1 << (c % 8)) == 0);
-    }
-    finite
-}
-
-/// The transpose of an 8 × 8 matrix of f32 held as eight row vectors.
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
-unsafe fn transpose_8x8(r: [std::arch::x86_64::__m256; 8]) -> [std::arch::x86_64::__m256; 8] {
-    use std::arch::x86_64::*;
-    let t0 = _mm256_unpacklo_ps(r[0], r[1]);
-    let t1 = _mm256_unpackhi_ps(r[0], r[1]);
-    let t2 = _mm256_unpacklo_ps(r[2], r[3]);
-    let t3 = _mm256_unpackhi_ps(r[2], r[3]);
-    let t4 = _mm256_unpacklo_ps(r[4], r[5]);
-    let t5 = _mm256_unpackhi_ps(r[4], r[5]);
-    let t6 = _mm256_unpacklo_ps(r[6], r[7]);
-    let t7 = _mm256_unpackhi_ps(r[6], r[7]);
-    let u0 = _mm256_shuffle_ps::<0x44>(t0, t2);
-    let u1 = _mm256_shuffle_ps::<0xEE>(t0, t2);
-    let u2 = _mm256_shuffle_ps::<0x44>(t1, t3);
-    let u3 = _mm256_shuffle_ps::<0xEE>(t1, t3);
-    let u4 = _mm256_shuffle_ps::<0x44>(t4, t6);
-    let u5 = _mm256_shuffle_ps::<0xEE>(t4, t6);
-    let u6 = _mm256_shuffle_ps::<0x44>(t5, t7);
-    let u7 = _mm256_shuffle_ps::<0xEE>(t5, t7);
-    [
-        _mm256_permute2f128_ps::<0x20>(u0, u4),
-        _mm256_permute2f128_ps::<0x20>(u1, u5),
-        _mm256_permute2f128_ps::<0x20>(u2, u6),
-        _mm256_permute2f128_ps::<0x20>(u3, u7),
-        _mm256_permute2f128_ps::<0x31>(u0, u4),
-        _mm256_permute2f128_ps::<0x31>(u1, u5),
-        _mm256_permute2f128_ps::<0x31>(u2, u6),
-        _mm256_permute2f128_ps::<0x31>(u3, u7),
-    ]
 }
 
 #[cfg(test)]

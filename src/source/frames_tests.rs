@@ -40,8 +40,57 @@ fn deinterleave_matches_sample_by_sample_decoding() {
                     // Blocks are decoded into recycled vectors: start from stale ones.
                     let mut got = vec![vec![-1.0; 5]; n_ch];
                     let mut finite = vec![false; 3];
-                    deinterleave_with(isa, codec, &bytes, 0.5, &mut got, &mut finite);
+                    deinterleave_with(
+                        isa,
+                        codec,
+                        &bytes,
+                        FrameLayout::whole(n_ch),
+                        0.5,
+                        &mut got,
+                        &mut finite,
+                    );
                     assert!(finite.is_empty() || finite == vec![true; n_ch]);
+                    // A run of the channels (as a worker decodes its share): the same
+                    // values, the same flags. Runs of 8 take the f32 kernel, off the
+                    // frame's groups of eight too.
+                    for (first, count) in [(0, n_ch), (1, n_ch - 1), (n_ch / 2, n_ch / 2)]
+                        .into_iter()
+                        .chain((n_ch >= 16).then_some((3, 8)))
+                        .chain((n_ch >= 16).then_some((8, 8)))
+                    {
+                        let layout = FrameLayout {
+                            frame_channels: n_ch,
+                            first,
+                        };
+                        let mut part = vec![vec![-1.0; 2]; count];
+                        let mut part_finite = Vec::new();
+                        deinterleave_with(
+                            isa,
+                            codec,
+                            &bytes,
+                            layout,
+                            0.5,
+                            &mut part,
+                            &mut part_finite,
+                        );
+                        for (c, ch) in part.iter().enumerate() {
+                            assert_eq!(ch.len(), frames);
+                            for (i, v) in ch.iter().enumerate() {
+                                let at = (i * n_ch + first + c) * sb;
+                                let want = codec.decode(&bytes[at..at + sb]) * 0.5;
+                                assert_eq!(
+                                    v.to_bits(),
+                                    want.to_bits(),
+                                    "{isa:?} {codec:?} {first}+{count} of {n_ch} #{i}"
+                                );
+                            }
+                        }
+                        assert!(part_finite.is_empty() || part_finite == vec![true; count]);
+                        if isa != Isa::Generic && codec == Codec::F32 && count % 8 == 0 && count > 0
+                        {
+                            assert_eq!(part_finite.len(), count, "the f32 kernel flags");
+                        }
+                    }
                     for (c, ch) in got.iter().enumerate() {
                         assert_eq!(ch.len(), frames);
                         for (i, v) in ch.iter().enumerate() {
@@ -78,7 +127,8 @@ fn known_finite_flags_name_exactly_the_channels_with_non_finite_values() {
                     let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
                     let mut got = vec![Vec::new(); n_ch];
                     let mut finite = Vec::new();
-                    deinterleave_with(isa, Codec::F32, &bytes, 1.0, &mut got, &mut finite);
+                    let whole = FrameLayout::whole(n_ch);
+                    deinterleave_with(isa, Codec::F32, &bytes, whole, 1.0, &mut got, &mut finite);
                     if !finite.is_empty() {
                         for (c, f) in finite.iter().enumerate() {
                             assert_eq!(*f, c != bad_ch, "{isa:?} {n_ch} ch {frames} frames");
@@ -88,7 +138,7 @@ fn known_finite_flags_name_exactly_the_channels_with_non_finite_values() {
                     if isa != Isa::Generic && n_ch % 8 == 0 {
                         assert_eq!(finite.len(), n_ch);
                     }
-                    deinterleave_with(isa, Codec::F32, &bytes, 1e300, &mut got, &mut finite);
+                    deinterleave_with(isa, Codec::F32, &bytes, whole, 1e300, &mut got, &mut finite);
                     assert!(finite.is_empty(), "a scale of 1e300 can overflow");
                 }
             }

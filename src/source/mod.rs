@@ -137,6 +137,18 @@ pub trait Source: Send {
     /// Returns `Ok(false)` (and an empty block) at the end of the input.
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
 
+    /// [`Source::read_block`] with the frames left in their stored encoding, for sources of
+    /// interleaved binary frames (raw samples, WAV): each analysis thread then decodes only its
+    /// own channels ([`encoded::EncodedFrames::decode_into`]), with the same values and flags.
+    /// `None`: this source only decodes itself (call `read_block`).
+    fn read_encoded_block(
+        &mut self,
+        _max_frames: usize,
+        _out: &mut encoded::EncodedFrames,
+    ) -> Option<Result<bool, SourceError>> {
+        None
+    }
+
     /// Sample frames the input holds in all, when its header or container says so (a WAV's
     /// data chunk, a file in memory); `None` for streams of unknown length.
     fn duration_frames(&self) -> Option<u64> {
@@ -149,6 +161,7 @@ pub trait Source: Send {
 // without a single frame is `Empty`, and a call may return fewer frames than asked (what has
 // arrived on a pipe).
 pub mod csv;
+pub mod encoded;
 mod frames;
 pub mod frf;
 pub mod frf_csv;

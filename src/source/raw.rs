@@ -177,6 +177,14 @@ impl<R: Read + Send> Source for RawSource<R> {
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
         self.frames.read_block(max_frames, block)
     }
+
+    fn read_encoded_block(
+        &mut self,
+        max_frames: usize,
+        out: &mut super::encoded::EncodedFrames,
+    ) -> Option<Result<bool, SourceError>> {
+        Some(self.frames.read_encoded_block(max_frames, out))
+    }
 }
 
 #[cfg(test)]
@@ -207,9 +215,40 @@ mod tests {
         }
     }
 
+    /// [`drain`] through `read_encoded_block`, each block decoded whole as a worker would.
+    fn drain_encoded(mut source: impl Source) -> Vec<String> {
+        let mut seen = Vec::new();
+        let mut frames = crate::source::encoded::EncodedFrames::default();
+        let mut block = Block::default();
+        loop {
+            match source.read_encoded_block(1000, &mut frames) {
+                Some(Ok(true)) => {
+                    frames.decode_into(0..frames.channels(), &mut block);
+                    seen.push(format!("{:?} {:?}", block.channels, block.known_finite));
+                }
+                Some(Ok(false)) => {
+                    seen.push("end".into());
+                    return seen;
+                }
+                Some(Err(e)) => {
+                    seen.push(format!("error: {e}"));
+                    if !matches!(
+                        source.read_encoded_block(1000, &mut frames),
+                        Some(Ok(false))
+                    ) {
+                        seen.push("not ended after the error".into());
+                    }
+                    return seen;
+                }
+                None => return vec!["no encoded blocks".into()],
+            }
+        }
+    }
+
     /// The mapped file gives exactly the blocks, flags and errors of the same bytes read as a
     /// stream: whole files, files ending in a partial frame, a file read from an offset that is
-    /// not on a page or a frame boundary, and a file with nothing left.
+    /// not on a page or a frame boundary, and a file with nothing left. So do both when their
+    /// blocks are left encoded and decoded afterwards, as the workers do.
     #[test]
     fn a_mapped_file_reads_as_the_same_bytes_streamed() {
         let dir = std::env::temp_dir().join(format!("dampscope-mapped-{}", std::process::id()));
@@ -236,23 +275,28 @@ mod tests {
                 .unwrap()
                 .write_all(&bytes)
                 .unwrap();
-            let mut file = std::fs::File::open(&path).unwrap();
-            file.seek(SeekFrom::Start(skip as u64)).unwrap();
-            let mapped = RawSource::from_file(file, "x", RawFormat::F32, 1000.0, n_ch).unwrap();
-            assert!(mapped.frames.is_mapped() || skip >= bytes.len());
-            let stream = RawSource::new(
-                std::io::Cursor::new(bytes[skip.min(bytes.len())..].to_vec()),
-                "x",
-                RawFormat::F32,
-                1000.0,
-                n_ch,
-            )
-            .unwrap();
-            let (a, b) = (drain(mapped), drain(stream));
-            assert_eq!(
-                a, b,
-                "{n_ch} ch, {frames} frames, {stray} stray, from {skip}"
-            );
+            let mapped = || {
+                let mut file = std::fs::File::open(&path).unwrap();
+                file.seek(SeekFrom::Start(skip as u64)).unwrap();
+                RawSource::from_file(file, "x", RawFormat::F32, 1000.0, n_ch).unwrap()
+            };
+            assert!(mapped().frames.is_mapped() || skip >= bytes.len());
+            let stream = || {
+                let rest = bytes[skip.min(bytes.len())..].to_vec();
+                RawSource::new(
+                    std::io::Cursor::new(rest),
+                    "x",
+                    RawFormat::F32,
+                    1000.0,
+                    n_ch,
+                )
+                .unwrap()
+            };
+            let case = format!("{n_ch} ch, {frames} frames, {stray} stray, from {skip}");
+            let a = drain(mapped());
+            assert_eq!(a, drain(stream()), "{case}");
+            assert_eq!(a, drain_encoded(mapped()), "{case}, encoded");
+            assert_eq!(a, drain_encoded(stream()), "{case}, encoded stream");
             assert!(!a.is_empty());
         }
         std::fs::remove_dir_all(&dir).ok();

@@ -387,6 +387,13 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
         ) -> Result<bool, SourceError> {
             self.inner.read_block(max_frames, block)
         }
+        fn read_encoded_block(
+            &mut self,
+            max_frames: usize,
+            out: &mut super::encoded::EncodedFrames,
+        ) -> Option<Result<bool, SourceError>> {
+            self.inner.read_encoded_block(max_frames, out)
+        }
     }
     let info = super::SignalInfo {
         sample_rate_hz: inner.info().sample_rate_hz,

@@ -296,4 +296,12 @@ impl<R: Read + Send> Source for WavSource<R> {
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
         self.frames.read_block(max_frames, block)
     }
+
+    fn read_encoded_block(
+        &mut self,
+        max_frames: usize,
+        out: &mut super::encoded::EncodedFrames,
+    ) -> Option<Result<bool, SourceError>> {
+        Some(self.frames.read_encoded_block(max_frames, out))
+    }
 }

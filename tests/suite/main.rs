@@ -67,6 +67,7 @@ mod sim_modes_model;
 mod sim_simulate;
 mod sim_simulate_cli;
 mod sim_stream;
+mod sources_encoded_blocks;
 mod sources_formats;
 mod sources_inputs;
 mod sources_synth;
