@@ -19,6 +19,12 @@ pub enum FilterDirection {
     Reversed,
 }
 
+/// Samples a buffer reserves when it first receives some (2 MiB, address space only until
+/// written): a decay that grew by doubling was copied at every step, and the copies faulted in
+/// twice the memory it ended with (`memmove` and its page faults were 10 % of a 64-channel,
+/// 10 s octave-bank run at 4096 Hz).
+const RESERVED_SAMPLES: usize = 1 << 18;
+
 /// One decay's samples, held whole (up to a capacity) for filtering backwards.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct DecayBuffer {
@@ -42,6 +48,7 @@ impl DecayBuffer {
     /// filter's output before the onset is what is kept, not the input there.
     pub(crate) fn start_with_pre_roll(&mut self, pre_roll: &[f64], len: usize) {
         self.samples.clear();
+        self.reserve_first();
         let from = pre_roll.len().saturating_sub(len);
         let given = pre_roll.len() - from;
         self.samples.resize(len - given, 0.0);
@@ -50,10 +57,19 @@ impl DecayBuffer {
 
     /// Appends samples; those past the capacity are dropped and the decay marked overflowed.
     pub(crate) fn push(&mut self, samples: &[f64]) {
+        self.reserve_first();
         let room = self.capacity.saturating_sub(self.samples.len());
         self.samples
             .extend_from_slice(&samples[..samples.len().min(room)]);
         self.overflowed |= samples.len() > room;
+    }
+
+    /// Reserves [`RESERVED_SAMPLES`] (at most the capacity) the first time samples come.
+    fn reserve_first(&mut self) {
+        if self.samples.capacity() == 0 {
+            self.samples
+                .reserve_exact(self.capacity.min(RESERVED_SAMPLES));
+        }
     }
 
     /// The samples held, oldest first.
