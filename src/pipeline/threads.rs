@@ -416,7 +416,10 @@ mod tests {
                 assert_eq!(flat, (0..channels).collect::<Vec<_>>());
                 let sizes: Vec<usize> = shares.iter().map(|r| r.len()).collect();
                 let (lo, hi) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
-                assert!(hi - lo <= 1 && *lo >= 1, "{channels} ch, {workers}: {sizes:?}");
+                assert!(
+                    hi - lo <= 1 && *lo >= 1,
+                    "{channels} ch, {workers}: {sizes:?}"
+                );
             }
         }
         assert_eq!(channel_shares(64, 2), vec![0..32, 32..64]);

@@ -117,4 +117,3 @@ unsafe fn transpose_8x8(r: [std::arch::x86_64::__m256; 8]) -> [std::arch::x86_64
         _mm256_permute2f128_ps::<0x31>(u3, u7),
     ]
 }
-

@@ -62,6 +62,34 @@ pub(super) fn window_pair(dst: &mut [Complex<f64>], a: &[f64], b: &[f64], window
 /// Bins per step of the unpacking loops below (their fixed-size lane arrays become vectors).
 const UNPACK_LANES: usize = 4;
 
+/// The real and imaginary parts of z[k..k+4] and of their mirror images z[n−k], z[n−k−1],
+/// z[n−k−2], z[n−k−3] (`zp` points at z as interleaved f64), each in lanes ordered
+/// k, k+2, k+1, k+3 (the order the unpacks give): `[a_re, a_im, b_re, b_im]`.
+///
+/// # Safety
+/// AVX2 must be present, and z[k..k+4] and z[n−k−3..=n−k] must lie in z.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+unsafe fn load_mirrored(zp: *const f64, k: usize, n: usize) -> [std::arch::x86_64::__m256d; 4] {
+    use std::arch::x86_64::*;
+    let a01 = _mm256_loadu_pd(zp.add(2 * k));
+    let a23 = _mm256_loadu_pd(zp.add(2 * k + 4));
+    // z[n−k−3], z[n−k−2] and z[n−k−1], z[n−k]; halves swapped to n−k, n−k−1 … first.
+    let b_lo = _mm256_loadu_pd(zp.add(2 * (n - k - 3)));
+    let b_hi = _mm256_loadu_pd(zp.add(2 * (n - k - 1)));
+    let (b_hi, b_lo) = (
+        _mm256_permute2f128_pd::<1>(b_hi, b_hi),
+        _mm256_permute2f128_pd::<1>(b_lo, b_lo),
+    );
+    [
+        _mm256_unpacklo_pd(a01, a23),
+        _mm256_unpackhi_pd(a01, a23),
+        _mm256_unpacklo_pd(b_hi, b_lo),
+        _mm256_unpackhi_pd(b_hi, b_lo),
+    ]
+}
+
 /// The power spectra of two real frames from the DFT `z` of `a + j b` (length N):
 /// A[k] = (Z[k] + conj Z[N−k]) / 2 and B[k] = (Z[k] − conj Z[N−k]) / 2j, for the bins
 /// k < `power_a.len()` (≤ N/2 + 1). Bin 0 pairs with itself; the others run in lanes.
@@ -107,19 +135,7 @@ pub(super) fn unpack_pair_powers(
             // SAFETY: k + 3 < bins ≤ N/2 + 1, so z[k..k+4] and z[N−k−3..=N−k] lie in z (N−k−3
             // ≥ N − N/2 ≥ 0 as k + 3 ≤ N/2) and the stores in power_a, power_b. Lanes
             // hold bins k, k+2, k+1, k+3 (the unpacks' order).
-            let a01 = _mm256_loadu_pd(zp.add(2 * k));
-            let a23 = _mm256_loadu_pd(zp.add(2 * k + 4));
-            let (a_re, a_im) = (_mm256_unpacklo_pd(a01, a23), _mm256_unpackhi_pd(a01, a23));
-            let b_lo = _mm256_loadu_pd(zp.add(2 * (n - k - 3)));
-            let b_hi = _mm256_loadu_pd(zp.add(2 * (n - k - 1)));
-            let (b_hi, b_lo) = (
-                _mm256_permute2f128_pd::<1>(b_hi, b_hi),
-                _mm256_permute2f128_pd::<1>(b_lo, b_lo),
-            );
-            let (b_re, b_im) = (
-                _mm256_unpacklo_pd(b_hi, b_lo),
-                _mm256_unpackhi_pd(b_hi, b_lo),
-            );
+            let [a_re, a_im, b_re, b_im] = load_mirrored(zp, k, n);
             let (s_re, s_im) = (_mm256_add_pd(a_re, b_re), _mm256_sub_pd(a_im, b_im));
             let (d_re, d_im) = (_mm256_sub_pd(a_re, b_re), _mm256_add_pd(a_im, b_im));
             let pa = _mm256_add_pd(_mm256_mul_pd(s_re, s_re), _mm256_mul_pd(s_im, s_im));
@@ -243,20 +259,7 @@ pub(super) fn half_spectrum_powers(
             // SAFETY: k + 3 ≤ pairs ≤ (M−1)/2, so z[k..k+4] and z[M−k−3..=M−k] lie in z,
             // twiddles[k−1..k+3] in twiddles, and the stores in power (length M + 1).
             // Lanes hold bins in the order k, k+2, k+1, k+3 (the unpacks' order).
-            let a01 = _mm256_loadu_pd(zp.add(2 * k));
-            let a23 = _mm256_loadu_pd(zp.add(2 * k + 4));
-            let (a_re, a_im) = (_mm256_unpacklo_pd(a01, a23), _mm256_unpackhi_pd(a01, a23));
-            // z[M−k−3], z[M−k−2] and z[M−k−1], z[M−k]; halves swapped to M−k, M−k−1 … first.
-            let b_lo = _mm256_loadu_pd(zp.add(2 * (m - k - 3)));
-            let b_hi = _mm256_loadu_pd(zp.add(2 * (m - k - 1)));
-            let (b_hi, b_lo) = (
-                _mm256_permute2f128_pd::<1>(b_hi, b_hi),
-                _mm256_permute2f128_pd::<1>(b_lo, b_lo),
-            );
-            let (b_re, b_im) = (
-                _mm256_unpacklo_pd(b_hi, b_lo),
-                _mm256_unpackhi_pd(b_hi, b_lo),
-            );
+            let [a_re, a_im, b_re, b_im] = load_mirrored(zp, k, m);
             let t01 = _mm256_loadu_pd(tp.add(2 * (k - 1)));
             let t23 = _mm256_loadu_pd(tp.add(2 * (k + 1)));
             let (t_re, t_im) = (_mm256_unpacklo_pd(t01, t23), _mm256_unpackhi_pd(t01, t23));
