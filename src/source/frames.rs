@@ -166,7 +166,11 @@ pub(crate) fn deinterleave_with(
     // A finite value times a scale of magnitude at most 1 stays finite (it cannot overflow).
     let scale_keeps_finite = scale.is_finite() && scale.abs() <= 1.0;
     #[cfg(target_arch = "x86_64")]
-    if codec == Codec::F32 && channels.len().is_multiple_of(8) && isa != Isa::Generic {
+    if codec == Codec::F32
+        && !channels.is_empty()
+        && channels.len().is_multiple_of(8)
+        && isa != Isa::Generic
+    {
         // SAFETY: `Isa::detect` found AVX2 on this CPU; the channel count is a multiple of 8
         // and the channels lie in the frame.
         let finite = unsafe { f32_avx2::f32_by_eights_avx2(bytes, layout, scale, channels) };
