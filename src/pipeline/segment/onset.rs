@@ -227,10 +227,6 @@ pub struct RetriggerWatch {
     threshold: f64,
     /// Instruction set of the per-piece maximum.
     isa: crate::frontend::simd::Isa,
-    /// Whether the last stretch scanned piece by piece reached the level. Then the next one
-    /// most likely does too, and its whole-stretch test against the level (which only pays
-    /// when the stretch is quiet) is skipped: it scanned every sample of a loud decay twice.
-    loud: bool,
 }
 
 /// `i` modulo `n` for `i < 2n` (a ring index one step past its end), without a division.
@@ -268,7 +264,6 @@ impl RetriggerWatch {
             live: true,
             threshold: 0.0,
             isa: crate::frontend::simd::Isa::detect(),
-            loud: false,
         }
     }
 
@@ -286,7 +281,6 @@ impl RetriggerWatch {
         self.queue.clear();
         self.live = true;
         self.threshold = 0.0;
-        self.loud = false;
     }
 
     /// The maximum of closed block `k` (one of the last `maxima.len()` closed).
@@ -391,14 +385,10 @@ impl RetriggerWatch {
         }
         // A stretch wholly within the grace period or below the level holds no hit.
         let in_grace = self.seen + samples.len() as u64 <= self.grace;
-        if in_grace
-            || (!self.loud && super::sample_scan::max_abs_finite(self.isa, samples) < self.level)
-        {
+        if in_grace || super::sample_scan::max_abs_finite(self.isa, samples) < self.level {
             self.absorb(samples);
             return None;
         }
-        // Piece by piece (the same decisions as `absorb` where no piece reaches the level).
-        let mut loudest = 0.0f64;
         let mut done = 0;
         while done < samples.len() {
             // Up to the end of the current block, the threshold is fixed: a piece whose largest
@@ -407,7 +397,6 @@ impl RetriggerWatch {
             let piece = &samples[done..done + take];
             // A non-finite sample counts as 0, as in the per-sample test below.
             let piece_max = super::sample_scan::max_abs_finite(self.isa, piece);
-            loudest = loudest.max(piece_max);
             let in_grace = self.seen + (take as u64) <= self.grace;
             if in_grace || piece_max < self.level || piece_max < self.current_threshold() {
                 self.block_max = self.block_max.max(piece_max);
@@ -418,7 +407,6 @@ impl RetriggerWatch {
                 for (i, &x) in piece.iter().enumerate() {
                     let a = if x.is_finite() { x.abs() } else { 0.0 };
                     if a >= self.level && a >= threshold && self.seen >= self.grace {
-                        self.loud = true;
                         return Some(done + i);
                     }
                     self.block_max = self.block_max.max(a);
@@ -431,7 +419,6 @@ impl RetriggerWatch {
                 self.close_block();
             }
         }
-        self.loud = loudest >= self.level;
         None
     }
 }
