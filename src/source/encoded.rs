@@ -19,7 +19,7 @@ use crate::frontend::simd::Isa;
 /// Whole interleaved frames of one block, in the codec they were stored in.
 pub struct EncodedFrames {
     bytes: EncodedBytes,
-    codec: Option<Codec>,
+    codec: Codec,
     scale: f64,
     channels: usize,
     /// Instruction set of the decoder (detected once per block buffer, not per block).
@@ -29,8 +29,8 @@ pub struct EncodedFrames {
 impl Default for EncodedFrames {
     fn default() -> Self {
         EncodedFrames {
-            bytes: EncodedBytes::Empty,
-            codec: None,
+            bytes: EncodedBytes::Copied(Vec::new()),
+            codec: Codec::F32,
             scale: 1.0,
             channels: 0,
             isa: Isa::detect(),
@@ -39,10 +39,7 @@ impl Default for EncodedFrames {
 }
 
 /// The frames' bytes: a copy (read from a stream), or a range of a mapped file.
-#[derive(Default)]
 enum EncodedBytes {
-    #[default]
-    Empty,
     Copied(Vec<u8>),
     Mapped(Arc<MappedBytes>, Range<usize>),
 }
@@ -51,12 +48,12 @@ impl EncodedFrames {
     /// Empties the block for frames of `channels` channels in `codec`, each value times `scale`
     /// (a copy buffer is kept for reuse).
     pub(crate) fn reset(&mut self, codec: Codec, scale: f64, channels: usize) {
-        self.codec = Some(codec);
+        self.codec = codec;
         self.scale = scale;
         self.channels = channels;
         match &mut self.bytes {
             EncodedBytes::Copied(v) => v.clear(),
-            other => *other = EncodedBytes::Empty,
+            other => *other = EncodedBytes::Copied(Vec::new()),
         }
     }
 
@@ -78,7 +75,6 @@ impl EncodedFrames {
 
     fn bytes(&self) -> &[u8] {
         match &self.bytes {
-            EncodedBytes::Empty => &[],
             EncodedBytes::Copied(v) => v,
             EncodedBytes::Mapped(map, range) => &map.bytes()[range.clone()],
         }
@@ -91,7 +87,7 @@ impl EncodedFrames {
 
     /// Sample frames held.
     pub fn frames(&self) -> usize {
-        let frame_bytes = self.channels * self.codec.map_or(0, Codec::bytes);
+        let frame_bytes = self.channels * self.codec.bytes();
         self.bytes().len().checked_div(frame_bytes).unwrap_or(0)
     }
 
@@ -102,18 +98,13 @@ impl EncodedFrames {
         let end = range.end.min(self.channels);
         let start = range.start.min(end);
         out.channels.resize_with(end - start, Vec::new);
-        let Some(codec) = self.codec else {
-            out.channels.iter_mut().for_each(Vec::clear);
-            out.known_finite.clear();
-            return;
-        };
         let layout = FrameLayout {
             frame_channels: self.channels,
             first: start,
         };
         deinterleave_with(
             self.isa,
-            codec,
+            self.codec,
             self.bytes(),
             layout,
             self.scale,

@@ -147,42 +147,39 @@ pub(super) struct FrameBuffers {
 }
 
 impl FrameBuffers {
-    /// Sizes the buffers for the half-length complex FFT `half` (a no-op when they fit).
+    /// Sizes the buffers for the half-length complex FFT `half` (a no-op when they fit). Every
+    /// buffer this transform uses is checked: a thread may run transforms of other lengths and
+    /// parities in between, and they share `spectrum`, `scratch` and the powers.
     fn fit_even(&mut self, half: &dyn Fft<f64>) {
-        let m = half.len();
-        let zero = Complex::new(0.0, 0.0);
-        if self.half_in.len() != m {
-            self.half_in = vec![zero; m];
-            self.spectrum = vec![zero; m];
-            self.power = vec![0.0; m + 1];
-            self.power_b = vec![0.0; m + 1];
-        }
-        if self.scratch.len() != half.get_outofplace_scratch_len() {
-            self.scratch = vec![zero; half.get_outofplace_scratch_len()];
-        }
+        let (m, zero) = (half.len(), Complex::new(0.0, 0.0));
+        sized(&mut self.half_in, m, zero);
+        sized(&mut self.spectrum, m, zero);
+        sized(&mut self.scratch, half.get_outofplace_scratch_len(), zero);
+        sized(&mut self.power, m + 1, 0.0);
+        sized(&mut self.power_b, m + 1, 0.0);
     }
 
-    /// Sizes the buffers for `real` and, with frame pairs, for `pair` (a no-op when they fit).
+    /// Sizes the buffers for `real` and, with frame pairs, for `pair` (a no-op when they fit;
+    /// every buffer checked, as in [`FrameBuffers::fit_even`]).
     fn fit_odd(&mut self, real: &dyn RealToComplex<f64>, pair: Option<&dyn Fft<f64>>) {
-        let zero = Complex::new(0.0, 0.0);
-        if self.fft_in.len() != real.len()
-            || self.spectrum.len() != real.complex_len()
-            || self.scratch.len() != real.get_scratch_len()
-        {
-            self.fft_in = real.make_input_vec();
-            self.spectrum = real.make_output_vec();
-            self.scratch = real.make_scratch_vec();
-            self.power = vec![0.0; self.spectrum.len()];
-            self.power_b = vec![0.0; self.spectrum.len()];
-        }
+        let (bins, zero) = (real.complex_len(), Complex::new(0.0, 0.0));
+        sized(&mut self.fft_in, real.len(), 0.0);
+        sized(&mut self.spectrum, bins, zero);
+        sized(&mut self.scratch, real.get_scratch_len(), zero);
+        sized(&mut self.power, bins, 0.0);
+        sized(&mut self.power_b, bins, 0.0);
         if let Some(pair) = pair {
-            if self.pair.len() != pair.len() {
-                self.pair = vec![zero; pair.len()];
-            }
-            if self.pair_scratch.len() != pair.get_inplace_scratch_len() {
-                self.pair_scratch = vec![zero; pair.get_inplace_scratch_len()];
-            }
+            sized(&mut self.pair, pair.len(), zero);
+            sized(&mut self.pair_scratch, pair.get_inplace_scratch_len(), zero);
         }
+    }
+}
+
+/// `v` with `len` elements (refilled with `fill` when its length was different).
+fn sized<T: Clone>(v: &mut Vec<T>, len: usize, fill: T) {
+    if v.len() != len {
+        v.clear();
+        v.resize(len, fill);
     }
 }
 
@@ -271,6 +268,35 @@ mod tests {
                         assert_eq!(g.to_bits(), e.to_bits());
                     }
                 }
+            }
+        }
+    }
+
+    /// One thread's buffers serve transforms of any length and parity in turn (as a thread
+    /// analysing channels of different settings does): each gives the powers it gives on
+    /// fresh buffers. 200 → 201 → 200 once panicked in rustfft: the even length's input buffer
+    /// still fitted, so its spectrum buffer, resized by the odd one, was not checked.
+    #[test]
+    fn shared_buffers_serve_every_length_in_turn() {
+        let lengths = [200usize, 201, 200, 199, 9, 10, 402, 201, 200];
+        let x: Vec<f64> = (0..402).map(|i| (i as f64 * 0.13).cos() + 0.05).collect();
+        let window = vec![1.0; 402];
+        let mut shared = FrameBuffers::default();
+        for &n in &lengths {
+            let transform = Transform::new(n);
+            transform.frame_power(Isa::detect(), &x[..n], &window[..n], &mut shared);
+            let mut fresh = FrameBuffers::default();
+            transform.frame_power(Isa::detect(), &x[..n], &window[..n], &mut fresh);
+            assert_eq!(shared.power, fresh.power, "N {n} after other lengths");
+            assert_eq!(shared.power.len(), n / 2 + 1, "N {n}");
+            if transform.pairs_frames() {
+                let (a, b) = (&x[..n], &x[1..n + 1]);
+                transform.pair_powers(Isa::detect(), a, b, &window[..n], &mut shared);
+                transform.pair_powers(Isa::detect(), a, b, &window[..n], &mut fresh);
+                assert_eq!(
+                    (&shared.power, &shared.power_b),
+                    (&fresh.power, &fresh.power_b)
+                );
             }
         }
     }
