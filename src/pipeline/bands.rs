@@ -242,9 +242,7 @@ impl<E: DecayEstimator> BandTrackers<E> {
             }
         }
         for (b, est) in self.estimators.iter_mut().enumerate() {
-            for k in 0..taken.min(band_frames[b]) {
-                est.push_frame(energy[k * nb + b], frequency_hz[k * nb + b]);
-            }
+            est.push_frames_strided(energy, frequency_hz, b, nb, taken.min(band_frames[b]));
         }
     }
 

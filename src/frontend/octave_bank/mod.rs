@@ -127,6 +127,21 @@ pub fn butterworth_bandpass(
 /// Frames filtered per kernel call in a reversed decay (bounds the scratch of frame sums).
 const FRAMES_PER_CHUNK: usize = 1024;
 
+thread_local! {
+    /// The kernel's frame sums (scratch), one per thread for every channel it analyses: one
+    /// per front end faulted in 150 kB per channel of a reversed bank.
+    static FRAME_SUMS: std::cell::RefCell<Vec<FrameSums>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// Runs `f` with this thread's frame-sum scratch.
+fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>) -> R) -> R {
+    FRAME_SUMS.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut sums) => f(&mut sums),
+        // Only if a bank ran inside another's (it does not): a fresh scratch.
+        Err(_) => f(&mut Vec::new()),
+    })
+}
+
 /// The octave filter bank front end; one instance per channel.
 pub struct OctaveBankFrontEnd {
     bands: Vec<Band>,
@@ -139,8 +154,6 @@ pub struct OctaveBankFrontEnd {
     /// y[n] + y[n−2] = 2 cos(2πf/fs) y[n−1], exact sample by sample for a sinusoid, so that a
     /// frame shorter than a period is not biased (a lag product would be).
     kernel: Kernel,
-    /// Frame sums of the current call, frame by frame (scratch).
-    sums: Vec<FrameSums>,
     /// The frequency sums smoothed over about two periods of the band's lower edge, and the
     /// smoothing factor per frame: within one short frame a decaying sinusoid's cross term
     /// (σ/fs · sin ω · Σ y cos) does not cancel, over a few periods it does.
@@ -221,7 +234,6 @@ impl OctaveBankFrontEnd {
             sample_rate_hz,
             kernel: Kernel::new(&sections),
             sections,
-            sums: Vec::new(),
             smooth: vec![[0.0; 2]; nb],
             smooth_factor: bands
                 .iter()
@@ -311,20 +323,18 @@ impl FrontEnd for OctaveBankFrontEnd {
 
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         match self.settings.direction {
-            FilterDirection::Forward => {
-                let mut sums = std::mem::take(&mut self.sums);
+            FilterDirection::Forward => with_frame_sums(|sums| {
                 sums.clear();
                 let first = self.hop - self.in_frame;
                 self.kernel
-                    .filter(samples, false, Some((first, self.hop)), &mut sums);
+                    .filter(samples, false, Some((first, self.hop)), sums);
                 for frame in sums.chunks_exact(self.bands.len().max(1)) {
                     self.take_frame(frame);
                     Self::cosines_to_hz(self.isa, self.sample_rate_hz, &mut self.freq);
                     self.emit(sink);
                 }
                 self.in_frame = (self.in_frame + samples.len()) % self.hop;
-                self.sums = sums;
-            }
+            }),
             FilterDirection::Reversed => {
                 self.buffer.push(samples);
             }
@@ -347,32 +357,32 @@ impl FrontEnd for OctaveBankFrontEnd {
         let n_frames = band_frames.iter().copied().max().unwrap_or(0);
         let used = n_frames * self.hop;
         let nb = self.bands.len();
-        let mut frames = vec![0.0; n_frames * nb];
-        let mut freqs = vec![0.0; n_frames * nb];
         self.clear_filters();
-        let mut sums = std::mem::take(&mut self.sums);
-        sums.clear();
-        // Through the transient zone without keeping the output, then frame by frame from the
-        // last to the first, a bounded chunk of frames at a time.
-        self.kernel.filter(&buffer[used..], true, None, &mut sums);
-        let mut k_end = n_frames;
-        while k_end > 0 {
-            let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
-            sums.clear();
-            let chunk = &buffer[k_start * self.hop..k_end * self.hop];
-            self.kernel
-                .filter(chunk, true, Some((self.hop, self.hop)), &mut sums);
-            for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
-                let k = k_end - 1 - j;
-                self.take_frame(frame);
-                frames[k * nb..(k + 1) * nb].copy_from_slice(&self.energy);
-                freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
-            }
-            k_end = k_start;
-        }
-        self.sums = sums;
-        Self::cosines_to_hz(self.isa, self.sample_rate_hz, &mut freqs);
-        super::emit_band_frames(sink, &frames, &freqs, &band_frames);
+        super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
+            with_frame_sums(|sums| {
+                // Through the transient zone without keeping the output, then frame by frame
+                // from the last to the first, a bounded chunk of frames at a time.
+                sums.clear();
+                self.kernel.filter(&buffer[used..], true, None, sums);
+                let mut k_end = n_frames;
+                while k_end > 0 {
+                    let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
+                    sums.clear();
+                    let chunk = &buffer[k_start * self.hop..k_end * self.hop];
+                    self.kernel
+                        .filter(chunk, true, Some((self.hop, self.hop)), sums);
+                    for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
+                        let k = k_end - 1 - j;
+                        self.take_frame(frame);
+                        frames[k * nb..(k + 1) * nb].copy_from_slice(&self.energy);
+                        freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
+                    }
+                    k_end = k_start;
+                }
+            });
+            Self::cosines_to_hz(self.isa, self.sample_rate_hz, freqs);
+            super::emit_band_frames(sink, frames, freqs, &band_frames);
+        });
         self.clear_filters();
         self.buffer.give_back(buffer);
     }
