@@ -1,12 +1,15 @@
 //! The threads of a run: a reader hands each block to every worker over bounded channels; each
 //! worker owns the [`ChannelAnalyzer`]s of a contiguous run of channels (a panic in one channel
 //! stops that channel only) and, where the source leaves blocks encoded, decodes just those
-//! channels itself; finished rows come back in stream order ([`super::order::RowOrder`]).
+//! channels itself; finished rows come back in stream order ([`super::order::RowOrder`]). At
+//! the end of the input, every worker's open channels go to one queue that all workers drain
+//! ([`super::finishing`]).
 
 use std::sync::Arc;
 
 use crossbeam_channel::{bounded, Receiver, Sender};
 
+use super::finishing::{finish_queued, guarded, FinishJob, FinishQueue};
 use super::order::RowOrder;
 use super::schema::StageTimes;
 use super::{AnalysisConfig, ChannelAnalyzer, FrontEndFactory, ResultRow, RunSummary};
@@ -17,11 +20,11 @@ use crate::source::{Block, Source, SourceError};
 
 /// What a worker hands back after each block: finished rows per channel (index into the
 /// input's channels) and each of its channels' watermark ([`ChannelAnalyzer::watermark`]).
-struct WorkerReport {
-    rows: Vec<(usize, Vec<ResultRow>)>,
-    watermarks: Vec<(usize, u64)>,
+pub(super) struct WorkerReport {
+    pub(super) rows: Vec<(usize, Vec<ResultRow>)>,
+    pub(super) watermarks: Vec<(usize, u64)>,
     /// The worker's time on this block (analysis; with its split once its channels finished).
-    times: StageTimes,
+    pub(super) times: StageTimes,
 }
 
 /// How a run uses the machine; the results do not depend on it.
@@ -181,14 +184,16 @@ pub fn run_with(
         groups.push(WorkerChannels { range, analyzers });
     }
     let (row_tx, row_rx) = bounded::<WorkerReport>(64);
+    let finishing = FinishQueue::default();
     std::thread::scope(|scope| -> Result<RunSummary> {
         let mut worker_txs: Vec<Sender<ToWorker>> = Vec::new();
         let mut handles = Vec::new();
+        let finishing = &finishing;
         for group in groups {
             let (tx, rx) = bounded::<ToWorker>(4);
             worker_txs.push(tx);
             let row_tx = row_tx.clone();
-            handles.push(scope.spawn(move || worker(group, rx, row_tx)));
+            handles.push(scope.spawn(move || worker(group, rx, row_tx, finishing)));
         }
         drop(row_tx);
         let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
@@ -319,39 +324,26 @@ struct WorkerChannels {
     analyzers: Vec<(usize, ChannelAnalyzer)>,
 }
 
-fn worker(group: WorkerChannels, rx: Receiver<ToWorker>, row_tx: Sender<WorkerReport>) {
+fn worker(
+    group: WorkerChannels,
+    rx: Receiver<ToWorker>,
+    row_tx: Sender<WorkerReport>,
+    finishing: &FinishQueue,
+) {
     let WorkerChannels {
         range,
         analyzers: mut group,
     } = group;
     // This worker's channels of the last encoded block, decoded (reused block to block).
     let mut decoded = Block::default();
-    use std::panic::{catch_unwind, AssertUnwindSafe};
-    // A panic in one channel's analysis (a bug) stops that channel only: its rows say
-    // `internal_error` and the channels sharing this worker go on.
     let mut crashed = vec![false; group.len()];
-    let mut guarded = |i: usize,
-                       an: &mut ChannelAnalyzer,
-                       f: &dyn Fn(&mut ChannelAnalyzer, &mut Vec<ResultRow>)|
-     -> Vec<ResultRow> {
-        if crashed[i] {
-            return Vec::new();
-        }
-        let mut local = Vec::new();
-        if catch_unwind(AssertUnwindSafe(|| f(an, &mut local))).is_ok() {
-            local
-        } else {
-            crashed[i] = true;
-            an.fail_with(Flag::InternalError)
-        }
-    };
     for msg in rx.iter() {
+        let t0 = std::time::Instant::now();
         let mut report = WorkerReport {
             rows: Vec::new(),
             watermarks: Vec::with_capacity(group.len()),
             times: StageTimes::default(),
         };
-        let t0 = std::time::Instant::now();
         // Where this worker's channels are in the block it analyses (decoded ones start at 0).
         let (block, offset): (&Block, usize) = match &msg {
             ToWorker::Block(block) => (block, 0),
@@ -360,35 +352,28 @@ fn worker(group: WorkerChannels, rx: Receiver<ToWorker>, row_tx: Sender<WorkerRe
                 report.times.read_s += t0.elapsed().as_secs_f64();
                 (&decoded, range.start)
             }
-            ToWorker::End { .. } => (&decoded, 0),
+            ToWorker::End { truncated } => {
+                let jobs = group.drain(..).zip(crashed.drain(..));
+                finishing.deposit(jobs.map(|((channel, analyzer), crashed)| FinishJob {
+                    channel,
+                    analyzer,
+                    crashed,
+                }));
+                if !finish_queued(finishing, *truncated, &row_tx) {
+                    return;
+                }
+                continue;
+            }
         };
         for (i, (c, an)) in group.iter_mut().enumerate() {
-            let rows = match &msg {
-                ToWorker::Block(_) | ToWorker::Encoded(_) => {
-                    match block.channels.get(*c - offset) {
-                        Some(samples) => {
-                            let finite = block.is_known_finite(*c - offset);
-                            guarded(i, an, &|an, o| an.push_checked(samples, finite, o))
-                        }
-                        None => Vec::new(),
-                    }
+            if let Some(samples) = block.channels.get(*c - offset) {
+                let finite = block.is_known_finite(*c - offset);
+                let rows = guarded(&mut crashed[i], an, &|an, o| {
+                    an.push_checked(samples, finite, o)
+                });
+                if !rows.is_empty() {
+                    report.rows.push((*c, rows));
                 }
-                ToWorker::End { truncated } => {
-                    let t = *truncated;
-                    let rows = guarded(i, an, &|an, o| an.finish(t, o));
-                    let (segment_s, estimator_s) = an.stage_seconds();
-                    report.times.segment_s += segment_s;
-                    report.times.estimator_s += estimator_s;
-                    // Finished (or crashed): nothing more comes from this channel.
-                    report.watermarks.push((*c, u64::MAX));
-                    if !rows.is_empty() {
-                        report.rows.push((*c, rows));
-                    }
-                    continue;
-                }
-            };
-            if !rows.is_empty() {
-                report.rows.push((*c, rows));
             }
             report.watermarks.push((*c, an.watermark()));
         }
