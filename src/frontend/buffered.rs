@@ -19,16 +19,128 @@ pub enum FilterDirection {
     Reversed,
 }
 
-/// Samples a buffer reserves when it first receives some (2 MiB, address space only until
-/// written): a decay that grew by doubling was copied at every step, and the copies faulted in
-/// twice the memory it ended with (`memmove` and its page faults were 10 % of a 64-channel,
-/// 10 s octave-bank run at 4096 Hz).
+/// Samples a buffer reserves when it first receives some (2 MiB of f64, address space only
+/// until written): a decay that grew by doubling was copied at every step, and the copies
+/// faulted in twice the memory it ended with (`memmove` and its page faults were 10 % of a
+/// 64-channel, 10 s octave-bank run at 4096 Hz).
 const RESERVED_SAMPLES: usize = 1 << 18;
+
+/// A decay's samples as held: single precision while every sample so far is exactly an f32
+/// (recordings in f32, 16- and 24-bit PCM), double otherwise. Half the memory for the usual
+/// recordings: the buffers' page faults were a fifth of a 64-channel octave-bank run.
+#[derive(Clone, Debug)]
+pub(crate) enum DecaySamples {
+    /// Every sample is exactly the f32 kept.
+    Single(Vec<f32>),
+    /// Samples as given.
+    Double(Vec<f64>),
+}
+
+impl Default for DecaySamples {
+    fn default() -> Self {
+        DecaySamples::Single(Vec::new())
+    }
+}
+
+impl DecaySamples {
+    /// Samples held.
+    pub(crate) fn len(&self) -> usize {
+        match self {
+            DecaySamples::Single(v) => v.len(),
+            DecaySamples::Double(v) => v.len(),
+        }
+    }
+
+    /// Runs `f` with the samples as f64: the held ones, or (single precision) their values
+    /// widened into memory this thread reuses for every decay.
+    pub(crate) fn with_f64<R>(&self, f: impl FnOnce(&[f64]) -> R) -> R {
+        thread_local! {
+            static WIDENED: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
+        match self {
+            DecaySamples::Double(v) => f(v),
+            DecaySamples::Single(v) => {
+                let widen = |out: &mut Vec<f64>| {
+                    out.clear();
+                    out.extend(v.iter().map(|&x| f64::from(x)));
+                };
+                WIDENED.with(|cell| match cell.try_borrow_mut() {
+                    Ok(mut out) => {
+                        widen(&mut out);
+                        f(&out)
+                    }
+                    // Only if a decay were filtered inside another's (it is not).
+                    Err(_) => {
+                        let mut out = Vec::new();
+                        widen(&mut out);
+                        f(&out)
+                    }
+                })
+            }
+        }
+    }
+
+    fn clear(&mut self) {
+        match self {
+            DecaySamples::Single(v) => v.clear(),
+            DecaySamples::Double(v) => v.clear(),
+        }
+    }
+
+    fn capacity(&self) -> usize {
+        match self {
+            DecaySamples::Single(v) => v.capacity(),
+            DecaySamples::Double(v) => v.capacity(),
+        }
+    }
+
+    /// Appends `xs`, in single precision while they are exact, switching to double (for good)
+    /// at the first sample that is not.
+    fn extend(&mut self, xs: &[f64], reserve: usize) {
+        if let DecaySamples::Single(v) = self {
+            let exact = extend_while_exact(v, xs);
+            if exact == xs.len() {
+                return;
+            }
+            let mut wide = Vec::with_capacity(reserve.max(v.len() + xs.len() - exact));
+            wide.extend(v.iter().map(|&x| f64::from(x)));
+            *self = DecaySamples::Double(wide);
+            return self.extend(&xs[exact..], reserve);
+        }
+        if let DecaySamples::Double(v) = self {
+            v.extend_from_slice(xs);
+        }
+    }
+}
+
+/// Samples checked for exactness at a time (a vectorised pass each).
+const EXACT_CHUNK: usize = 64;
+
+/// Appends the samples of `xs` as f32 up to the first one that is not exactly an f32; returns
+/// how many were appended.
+fn extend_while_exact(v: &mut Vec<f32>, xs: &[f64]) -> usize {
+    let is_exact = |x: f64| f64::from(x as f32) == x;
+    let mut done = 0;
+    for chunk in xs.chunks(EXACT_CHUNK) {
+        // Without a branch per sample, so that the pass vectorises.
+        if !chunk.iter().fold(true, |all, &x| all & is_exact(x)) {
+            let n = chunk
+                .iter()
+                .position(|&x| !is_exact(x))
+                .unwrap_or(chunk.len());
+            v.extend(chunk[..n].iter().map(|&x| x as f32));
+            return done + n;
+        }
+        v.extend(chunk.iter().map(|&x| x as f32));
+        done += chunk.len();
+    }
+    done
+}
 
 /// One decay's samples, held whole (up to a capacity) for filtering backwards.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct DecayBuffer {
-    samples: Vec<f64>,
+    samples: DecaySamples,
     capacity: usize,
     overflowed: bool,
 }
@@ -37,7 +149,7 @@ impl DecayBuffer {
     /// An empty buffer that holds at most `capacity` samples.
     pub(crate) fn new(capacity: usize) -> Self {
         DecayBuffer {
-            samples: Vec::new(),
+            samples: DecaySamples::default(),
             capacity,
             overflowed: false,
         }
@@ -48,43 +160,41 @@ impl DecayBuffer {
     /// filter's output before the onset is what is kept, not the input there.
     pub(crate) fn start_with_pre_roll(&mut self, pre_roll: &[f64], len: usize) {
         self.samples.clear();
-        self.reserve_first();
         let from = pre_roll.len().saturating_sub(len);
         let given = pre_roll.len() - from;
-        self.samples.resize(len - given, 0.0);
+        self.push(&vec![0.0; len - given]);
         self.push(&pre_roll[from..]);
     }
 
     /// Appends samples; those past the capacity are dropped and the decay marked overflowed.
     pub(crate) fn push(&mut self, samples: &[f64]) {
-        self.reserve_first();
+        let reserve = self.capacity.min(RESERVED_SAMPLES);
+        if self.samples.capacity() == 0 {
+            // Reserved the first time samples come (see RESERVED_SAMPLES).
+            match &mut self.samples {
+                DecaySamples::Single(v) => v.reserve_exact(reserve),
+                DecaySamples::Double(v) => v.reserve_exact(reserve),
+            }
+        }
         let room = self.capacity.saturating_sub(self.samples.len());
         self.samples
-            .extend_from_slice(&samples[..samples.len().min(room)]);
+            .extend(&samples[..samples.len().min(room)], reserve);
         self.overflowed |= samples.len() > room;
     }
 
-    /// Reserves [`RESERVED_SAMPLES`] (at most the capacity) the first time samples come.
-    fn reserve_first(&mut self) {
-        if self.samples.capacity() == 0 {
-            self.samples
-                .reserve_exact(self.capacity.min(RESERVED_SAMPLES));
-        }
-    }
-
-    /// The samples held, oldest first.
-    pub(crate) fn samples(&self) -> &[f64] {
-        &self.samples
+    /// Samples held.
+    pub(crate) fn len(&self) -> usize {
+        self.samples.len()
     }
 
     /// Takes the samples out (to filter them while the bank's own state changes); hand the
     /// allocation back with [`DecayBuffer::give_back`].
-    pub(crate) fn take(&mut self) -> Vec<f64> {
+    pub(crate) fn take(&mut self) -> DecaySamples {
         std::mem::take(&mut self.samples)
     }
 
     /// Returns a taken allocation, emptied, for the next decay.
-    pub(crate) fn give_back(&mut self, mut samples: Vec<f64>) {
+    pub(crate) fn give_back(&mut self, mut samples: DecaySamples) {
         samples.clear();
         self.samples = samples;
     }
@@ -106,7 +216,7 @@ impl DecayBuffer {
         self.overflowed
     }
 
-    /// Bytes the buffer takes when full.
+    /// Bytes the buffer takes when full (in double precision, the most it can take).
     pub(crate) fn capacity_bytes(&self) -> usize {
         self.capacity.saturating_mul(std::mem::size_of::<f64>())
     }
@@ -122,10 +232,10 @@ mod tests {
         b.push(&[1.0, 2.0, 3.0]);
         assert!(!b.overflowed());
         b.push(&[4.0, 5.0, 6.0]);
-        assert_eq!(b.samples(), &[1.0, 2.0, 3.0, 4.0, 5.0]);
+        assert_eq!(held(&b), &[1.0, 2.0, 3.0, 4.0, 5.0]);
         assert!(b.overflowed());
         b.clear();
-        assert!(b.overflowed() && b.samples().is_empty());
+        assert!(b.overflowed() && b.len() == 0);
         b.reset();
         assert!(!b.overflowed());
     }
@@ -134,8 +244,59 @@ mod tests {
     fn pre_roll_is_zero_padded_in_front() {
         let mut b = DecayBuffer::new(10);
         b.start_with_pre_roll(&[7.0], 3);
-        assert_eq!(b.samples(), &[0.0, 0.0, 7.0]);
+        assert_eq!(held(&b), &[0.0, 0.0, 7.0]);
         b.start_with_pre_roll(&[1.0, 2.0, 3.0, 4.0], 3);
-        assert_eq!(b.samples(), &[2.0, 3.0, 4.0]);
+        assert_eq!(held(&b), &[2.0, 3.0, 4.0]);
+    }
+
+    fn held(b: &DecayBuffer) -> Vec<f64> {
+        b.samples.with_f64(|s| s.to_vec())
+    }
+
+    /// Samples come back bit for bit whatever they are: single precision holds them while
+    /// each is exactly an f32 (f32 recordings, PCM), double from the first that is not, with
+    /// the ones before it; a later decay of the same buffer stays in double.
+    #[test]
+    fn every_sample_comes_back_bit_for_bit() {
+        let exact: Vec<f64> = (0..300)
+            .map(|i| f64::from((i as f32 * 0.37).sin() * 0.8))
+            .chain([
+                0.0,
+                -0.0,
+                f64::from(f32::MAX),
+                f64::from(f32::MIN_POSITIVE),
+                f64::INFINITY,
+            ])
+            .collect();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for odd in [0.1, 1e-300, 1e300, f64::NAN, 1.0 + f64::EPSILON] {
+            for at in [0, 1, 63, 64, 65, 200, 305] {
+                let mut b = DecayBuffer::new(10_000);
+                let mut want = exact.clone();
+                want.insert(at, odd);
+                // In pieces of 7, so that the switch can come in the middle of a push.
+                for piece in want.chunks(7) {
+                    b.push(piece);
+                }
+                assert!(
+                    matches!(b.samples, DecaySamples::Double(_)),
+                    "{odd} at {at}"
+                );
+                assert_eq!(bits(&held(&b)), bits(&want), "{odd} at {at}");
+                b.clear();
+                b.push(&exact);
+                assert!(matches!(b.samples, DecaySamples::Double(_)));
+                assert_eq!(bits(&held(&b)), bits(&exact));
+            }
+        }
+        let mut b = DecayBuffer::new(10_000);
+        b.push(&exact);
+        assert!(matches!(b.samples, DecaySamples::Single(_)));
+        assert_eq!(bits(&held(&b)), bits(&exact));
+        // Taken out and given back, it is an empty buffer of the same precision.
+        let taken = b.take();
+        assert_eq!(taken.with_f64(|s| bits(s)), bits(&exact));
+        b.give_back(taken);
+        assert_eq!(b.len(), 0);
     }
 }

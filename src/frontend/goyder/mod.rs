@@ -80,6 +80,68 @@ pub struct GoyderFrontEnd {
 }
 
 impl GoyderFrontEnd {
+    /// The `n_frames` frames of a decay from its samples, in the bank's direction, to `sink`.
+    fn filter_decay(&mut self, buffer: &[f64], n_frames: usize, sink: &mut dyn FrameSink) {
+        let (n_total, hop, nb) = (buffer.len(), self.hop, self.bands.len());
+        let used = n_frames * hop;
+        super::with_band_frame_arrays(n_frames * nb, |energy, freq| {
+            let fs = self.sample_rate_hz;
+            let kernel = &mut self.kernel;
+            kernel.clear();
+            let mut flush = |kernel: &mut Kernel, k: usize| {
+                let range = k * nb..(k + 1) * nb;
+                kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
+            };
+            // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
+            // samples), frame boundaries, and the start of the kept part (reversed mode).
+            match self.settings.direction {
+                FilterDirection::Reversed => {
+                    let (mut n_end, mut m) = (n_total, 0usize);
+                    while n_end > 0 {
+                        if m % RESYNC_SAMPLES == 0 {
+                            kernel.resync(m, fs);
+                        }
+                        let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
+                        let lo = if n_end > used {
+                            used.max(cap)
+                        } else {
+                            ((n_end - 1) / hop * hop).max(cap)
+                        };
+                        kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
+                        m += n_end - lo;
+                        if n_end <= used && lo.is_multiple_of(hop) {
+                            flush(kernel, lo / hop);
+                        }
+                        n_end = lo;
+                    }
+                }
+                FilterDirection::Forward => {
+                    let mut n0 = 0;
+                    while n0 < used {
+                        if n0 % RESYNC_SAMPLES == 0 {
+                            kernel.resync(n0, fs);
+                        }
+                        let n1 = used
+                            .min((n0 / hop + 1) * hop)
+                            .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
+                        kernel.filter_span(&buffer[n0..n1], false, true);
+                        if n1.is_multiple_of(hop) {
+                            flush(kernel, n1 / hop - 1);
+                        }
+                        n0 = n1;
+                    }
+                }
+            }
+            // Each band holds the frames before its own transient zone.
+            let band_frames: Vec<usize> = self
+                .band_cut_samples
+                .iter()
+                .map(|c| n_total.saturating_sub(*c) / hop)
+                .collect();
+            super::emit_band_frames(sink, energy, freq, &band_frames);
+        });
+    }
+
     /// A filter bank over `bands` at `sample_rate_hz`. Errors on impossible settings (odd or
     /// out-of-range order, non-positive frame period or maximum duration, negative cut factor).
     pub fn new(settings: GoyderSettings, sample_rate_hz: f64, bands: &[Band]) -> Result<Self> {
@@ -182,7 +244,7 @@ impl FrontEnd for GoyderFrontEnd {
     }
 
     fn finish(&mut self, sink: &mut dyn FrameSink) {
-        let n_total = self.buffer.samples().len();
+        let n_total = self.buffer.len();
         let keep = n_total.saturating_sub(self.cut_samples());
         let hop = self.hop;
         let n_frames = keep / hop;
@@ -191,65 +253,9 @@ impl FrontEnd for GoyderFrontEnd {
             self.buffer.clear();
             return;
         }
-        let used = n_frames * hop;
-        super::with_band_frame_arrays(n_frames * nb, |energy, freq| {
-            let fs = self.sample_rate_hz;
-            let kernel = &mut self.kernel;
-            kernel.clear();
-            let buffer = self.buffer.samples();
-            let mut flush = |kernel: &mut Kernel, k: usize| {
-                let range = k * nb..(k + 1) * nb;
-                kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
-            };
-            // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
-            // samples), frame boundaries, and the start of the kept part (reversed mode).
-            match self.settings.direction {
-                FilterDirection::Reversed => {
-                    let (mut n_end, mut m) = (n_total, 0usize);
-                    while n_end > 0 {
-                        if m % RESYNC_SAMPLES == 0 {
-                            kernel.resync(m, fs);
-                        }
-                        let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
-                        let lo = if n_end > used {
-                            used.max(cap)
-                        } else {
-                            ((n_end - 1) / hop * hop).max(cap)
-                        };
-                        kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
-                        m += n_end - lo;
-                        if n_end <= used && lo.is_multiple_of(hop) {
-                            flush(kernel, lo / hop);
-                        }
-                        n_end = lo;
-                    }
-                }
-                FilterDirection::Forward => {
-                    let mut n0 = 0;
-                    while n0 < used {
-                        if n0 % RESYNC_SAMPLES == 0 {
-                            kernel.resync(n0, fs);
-                        }
-                        let n1 = used
-                            .min((n0 / hop + 1) * hop)
-                            .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
-                        kernel.filter_span(&buffer[n0..n1], false, true);
-                        if n1.is_multiple_of(hop) {
-                            flush(kernel, n1 / hop - 1);
-                        }
-                        n0 = n1;
-                    }
-                }
-            }
-            // Each band holds the frames before its own transient zone.
-            let band_frames: Vec<usize> = self
-                .band_cut_samples
-                .iter()
-                .map(|c| n_total.saturating_sub(*c) / hop)
-                .collect();
-            super::emit_band_frames(sink, energy, freq, &band_frames);
-        });
-        self.buffer.clear();
+        let held = self.buffer.take();
+        held.with_f64(|buffer| self.filter_decay(buffer, n_frames, sink));
+        self.buffer.give_back(held);
     }
 
     fn reset(&mut self) {

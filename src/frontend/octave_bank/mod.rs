@@ -264,6 +264,46 @@ impl OctaveBankFrontEnd {
         self.in_frame = 0;
     }
 
+    /// A whole decay's frames from its samples, filtered from the last to the first, to `sink`.
+    fn filter_reversed(&mut self, buffer: &[f64], sink: &mut dyn FrameSink) {
+        // Each band keeps the frames before its own transient zone; the widest band the most.
+        let band_frames: Vec<usize> = self
+            .band_cut_samples
+            .iter()
+            .map(|c| buffer.len().saturating_sub(*c) / self.hop)
+            .collect();
+        let n_frames = band_frames.iter().copied().max().unwrap_or(0);
+        let used = n_frames * self.hop;
+        let nb = self.bands.len();
+        self.clear_filters();
+        super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
+            with_frame_sums(|sums| {
+                // Through the transient zone without keeping the output, then frame by frame
+                // from the last to the first, a bounded chunk of frames at a time.
+                sums.clear();
+                self.kernel.filter(&buffer[used..], true, None, sums);
+                let mut k_end = n_frames;
+                while k_end > 0 {
+                    let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
+                    sums.clear();
+                    let chunk = &buffer[k_start * self.hop..k_end * self.hop];
+                    self.kernel
+                        .filter(chunk, true, Some((self.hop, self.hop)), sums);
+                    for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
+                        let k = k_end - 1 - j;
+                        self.take_frame(frame);
+                        frames[k * nb..(k + 1) * nb].copy_from_slice(&self.energy);
+                        freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
+                    }
+                    k_end = k_start;
+                }
+            });
+            Self::cosines_to_hz(self.isa, self.sample_rate_hz, freqs);
+            super::emit_band_frames(sink, frames, freqs, &band_frames);
+        });
+        self.clear_filters();
+    }
+
     /// Turns one frame's sums (every band) into its energies and the cosines of its frequencies
     /// (cos 2πf/fs, NaN where unknown; [`OctaveBankFrontEnd::cosines_to_hz`] converts them,
     /// many frames at once where it can).
@@ -347,44 +387,9 @@ impl FrontEnd for OctaveBankFrontEnd {
             self.clear_filters();
             return;
         }
-        let buffer = self.buffer.take();
-        // Each band keeps the frames before its own transient zone; the widest band the most.
-        let band_frames: Vec<usize> = self
-            .band_cut_samples
-            .iter()
-            .map(|c| buffer.len().saturating_sub(*c) / self.hop)
-            .collect();
-        let n_frames = band_frames.iter().copied().max().unwrap_or(0);
-        let used = n_frames * self.hop;
-        let nb = self.bands.len();
-        self.clear_filters();
-        super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
-            with_frame_sums(|sums| {
-                // Through the transient zone without keeping the output, then frame by frame
-                // from the last to the first, a bounded chunk of frames at a time.
-                sums.clear();
-                self.kernel.filter(&buffer[used..], true, None, sums);
-                let mut k_end = n_frames;
-                while k_end > 0 {
-                    let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
-                    sums.clear();
-                    let chunk = &buffer[k_start * self.hop..k_end * self.hop];
-                    self.kernel
-                        .filter(chunk, true, Some((self.hop, self.hop)), sums);
-                    for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
-                        let k = k_end - 1 - j;
-                        self.take_frame(frame);
-                        frames[k * nb..(k + 1) * nb].copy_from_slice(&self.energy);
-                        freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
-                    }
-                    k_end = k_start;
-                }
-            });
-            Self::cosines_to_hz(self.isa, self.sample_rate_hz, freqs);
-            super::emit_band_frames(sink, frames, freqs, &band_frames);
-        });
-        self.clear_filters();
-        self.buffer.give_back(buffer);
+        let held = self.buffer.take();
+        held.with_f64(|buffer| self.filter_reversed(buffer, sink));
+        self.buffer.give_back(held);
     }
 
     fn reset(&mut self) {
