@@ -31,20 +31,12 @@ pub trait DecayEstimator: Send {
     /// Adds the next frame: its band energy (≥ 0) and the frequency present in it (Hz, or NaN).
     fn push_frame(&mut self, energy: f64, frequency_hz: f64);
 
-    /// Adds `count` frames taken from interleaved rows: frame k's energy and frequency are
-    /// `energy[first + k·stride]` and `frequency_hz[first + k·stride]` (a buffered bank's
-    /// frames, every band in a row). The same as one [`DecayEstimator::push_frame`] per frame.
-    fn push_frames_strided(
-        &mut self,
-        energy: &[f64],
-        frequency_hz: &[f64],
-        first: usize,
-        stride: usize,
-        count: usize,
-    ) {
-        for k in 0..count {
-            let i = first + k * stride;
-            self.push_frame(energy[i], frequency_hz[i]);
+    /// Adds frames in order: frame k's energy and frequency are `energy[k]` and
+    /// `frequency_hz[k]` (a buffered bank's frames of one band). The same as one
+    /// [`DecayEstimator::push_frame`] per frame.
+    fn push_frames(&mut self, energy: &[f64], frequency_hz: &[f64]) {
+        for (&e, &f) in energy.iter().zip(frequency_hz) {
+            self.push_frame(e, f);
         }
     }
 

@@ -151,32 +151,20 @@ impl DecayEstimator for OnlineSchroeder {
         self.running.add(e);
     }
 
-    fn push_frames_strided(
-        &mut self,
-        energy: &[f64],
-        frequency_hz: &[f64],
-        first: usize,
-        stride: usize,
-        count: usize,
-    ) {
-        // One extend per history and the running sum in registers: frame by frame, the sum
-        // went through memory on every push (a buffered bank hands over 5000 frames per band
-        // and decay at 2 ms frames).
-        if count == 0 {
-            return;
-        }
-        let stride = stride.max(1);
-        let rows = first..first + (count - 1) * stride + 1;
+    fn push_frames(&mut self, energy: &[f64], frequency_hz: &[f64]) {
+        // Written in place with the running sum in a local: a push per frame kept the sum and
+        // the length in memory (a buffered bank hands over 5000 frames per band and decay at
+        // 2 ms frames).
+        let n = energy.len().min(frequency_hz.len());
+        let start = self.energies.len();
+        self.energies.resize(start + n, 0.0);
         let mut running = self.running;
-        self.energies
-            .extend(energy[rows.clone()].iter().step_by(stride).map(|&x| {
-                let e = kept_energy(x);
-                running.add(e);
-                e
-            }));
+        for (kept, &x) in self.energies[start..].iter_mut().zip(energy) {
+            *kept = kept_energy(x);
+            running.add(*kept);
+        }
         self.running = running;
-        self.frequencies_hz
-            .extend(frequency_hz[rows].iter().step_by(stride));
+        self.frequencies_hz.extend_from_slice(&frequency_hz[..n]);
     }
 
     fn provisional(&self) -> DecayEstimate {
@@ -307,39 +295,44 @@ mod tests {
     }
 
     #[test]
-    fn strided_frames_are_pushed_as_one_by_one() {
-        // Rows of 3 bands; odd values (negative, NaN, infinite, zero) among them.
-        let mut rows = Vec::new();
-        for k in 0..500 {
-            let e = (-(k as f64) * 0.01).exp() * (1.0 + 0.3 * (k as f64 * 0.7).sin());
-            rows.extend([e, e * 1e-3, if k % 97 == 0 { f64::NAN } else { e * e }]);
-        }
-        rows[10] = -1.0;
-        rows[31] = f64::INFINITY;
-        rows[44] = 0.0;
-        let freqs: Vec<f64> = (0..rows.len()).map(|i| 100.0 + i as f64).collect();
-        for band in 0..3 {
-            for count in [0, 1, 2, 499, 500] {
-                let settings = EstimateSettings::default();
-                let mut one_by_one = OnlineSchroeder::new(0.002, 100.0, settings);
-                let mut strided = one_by_one.clone();
-                one_by_one.push_frame(0.5, 80.0);
-                strided.push_frame(0.5, 80.0);
-                for k in 0..count {
-                    one_by_one.push_frame(rows[band + 3 * k], freqs[band + 3 * k]);
+    fn frames_in_bulk_are_pushed_as_one_by_one() {
+        // Odd values (negative, NaN, infinite, zero) among them.
+        let mut energy: Vec<f64> = (0..500)
+            .map(|k| (-(k as f64) * 0.01).exp() * (1.0 + 0.3 * (k as f64 * 0.7).sin()))
+            .collect();
+        energy[10] = -1.0;
+        energy[31] = f64::INFINITY;
+        energy[44] = 0.0;
+        energy[97] = f64::NAN;
+        let freqs: Vec<f64> = (0..energy.len())
+            .map(|i| {
+                if i % 50 == 3 {
+                    f64::NAN
+                } else {
+                    100.0 + i as f64
                 }
-                strided.push_frames_strided(&rows, &freqs, band, 3, count);
-                assert_eq!(one_by_one.energies(), strided.energies(), "band {band}");
-                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-                assert_eq!(
-                    bits(one_by_one.frequencies_hz()),
-                    bits(strided.frequencies_hz())
-                );
-                assert_eq!(
-                    one_by_one.total_energy().to_bits(),
-                    strided.total_energy().to_bits()
-                );
+            })
+            .collect();
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        for count in [0, 1, 2, 499, 500] {
+            let settings = EstimateSettings::default();
+            let mut one_by_one = OnlineSchroeder::new(0.002, 100.0, settings);
+            let mut bulk = one_by_one.clone();
+            one_by_one.push_frame(0.5, 80.0);
+            bulk.push_frame(0.5, 80.0);
+            for k in 0..count {
+                one_by_one.push_frame(energy[k], freqs[k]);
             }
+            bulk.push_frames(&energy[..count], &freqs[..count]);
+            assert_eq!(one_by_one.energies(), bulk.energies(), "{count}");
+            assert_eq!(
+                bits(one_by_one.frequencies_hz()),
+                bits(bulk.frequencies_hz())
+            );
+            assert_eq!(
+                one_by_one.total_energy().to_bits(),
+                bulk.total_energy().to_bits()
+            );
         }
     }
 }

@@ -55,24 +55,28 @@ pub trait FrameSink {
     /// that the sink can make room for them in one step.
     fn expect_frames(&mut self, _frames: usize) {}
 
-    /// A whole decay's frames at once (a buffered bank): frame k's band b is
-    /// `energy[k · bands + b]` and `frequency_hz[k · bands + b]`, and band b takes part up to
-    /// frame `band_frames[b]` (exclusive; `bands` = `band_frames.len()`). The same as one
-    /// [`FrameSink::frame`] per frame, in order, with `active` marking the bands still in;
-    /// a sink may take them in bulk.
+    /// A whole decay's frames at once (a buffered bank), band by band: with n =
+    /// `energy.len() / bands` frames, band b's are `energy[b · n .. (b + 1) · n]` (frequencies
+    /// likewise), and band b takes part up to frame `band_frames[b]` (exclusive; `bands` =
+    /// `band_frames.len()`). The same as one [`FrameSink::frame`] per frame, in order, with
+    /// `active` marking the bands still in; a sink may take them in bulk (each band's frames
+    /// contiguous: a frame-major layout had every band's pass stride over all of them).
     fn frames(&mut self, energy: &[f64], frequency_hz: &[f64], band_frames: &[usize]) {
         let nb = band_frames.len();
         if nb == 0 {
             return;
         }
-        let mut active = vec![true; nb];
-        for k in 0..energy.len() / nb {
-            for (a, &end) in active.iter_mut().zip(band_frames) {
-                *a = k < end;
+        let n = energy.len() / nb;
+        let (mut active, mut row_e, mut row_f) = (vec![true; nb], vec![0.0; nb], vec![0.0; nb]);
+        for k in 0..n {
+            for b in 0..nb {
+                active[b] = k < band_frames[b];
+                row_e[b] = energy[b * n + k];
+                row_f[b] = frequency_hz[b * n + k];
             }
             self.frame(Frame {
-                energy: &energy[k * nb..(k + 1) * nb],
-                frequency_hz: &frequency_hz[k * nb..(k + 1) * nb],
+                energy: &row_e,
+                frequency_hz: &row_f,
                 active: (!active.iter().all(|a| *a)).then_some(active.as_slice()),
             });
         }
@@ -324,7 +328,8 @@ pub(crate) fn with_band_frame_arrays<R>(
     })
 }
 
-/// Emits the frames of a buffering bank: band b holds frames `0 .. band_frames[b]` (its own
+/// Emits the frames of a buffering bank, band by band ([`FrameSink::frames`]): band b holds
+/// frames `0 .. band_frames[b]` (its own
 /// transient cut) and is marked inactive after them. Each band's own start (its energy within
 /// 20 dB of its peak) is found by the estimator
 /// ([`crate::decay::schroeder::DECAY_START_LEVEL_DB`]), the same for every front end.

@@ -223,26 +223,53 @@ impl<E: DecayEstimator> BandTrackers<E> {
         }
         debug_assert_eq!(nb, self.estimators.len());
         let n_frames = energy.len() / nb;
+        // The running sums get an entry per frame written in place (sized for every frame,
+        // cut back to the frames taken): a push per band and frame kept the lengths and the
+        // flags in memory.
+        let mut first_entry = Vec::with_capacity(self.cumulative.len());
+        for c in &mut self.cumulative {
+            if c.is_empty() {
+                Self::restart_sum(c);
+            }
+            first_entry.push(c.len());
+            c.resize(c.len() + n_frames, 0.0);
+        }
         let mut taken = n_frames;
         for k in 0..n_frames {
-            let row = &energy[k * nb..(k + 1) * nb];
             let mut all_low = true;
-            for (b, &e) in row.iter().enumerate() {
-                if k < band_frames[b] {
+            for b in 0..nb {
+                let e = energy[b * n_frames + k];
+                let active = k < band_frames[b];
+                if active {
                     self.peak[b] = self.peak[b].max(e);
                     all_low &= e <= self.peak[b] * self.end_factor;
                 }
+                if let Some(c) = self.cumulative.get_mut(b) {
+                    // A band no longer active repeats its last frame (see `add_to_sums`).
+                    let i = first_entry[b] + k;
+                    let last = c[i - 1];
+                    let e = if active {
+                        e
+                    } else {
+                        i.checked_sub(2).map_or(0.0, |j| last - c[j])
+                    };
+                    c[i] = last + e;
+                }
             }
             self.frames += 1;
-            self.add_to_sums(row, |b| k < band_frames[b]);
             self.ended = (all_low && self.end_factor > 0.0) || self.on_floor();
             if self.ended {
                 taken = k + 1;
                 break;
             }
         }
+        for (c, first) in self.cumulative.iter_mut().zip(first_entry) {
+            c.truncate(first + taken);
+        }
         for (b, est) in self.estimators.iter_mut().enumerate() {
-            est.push_frames_strided(energy, frequency_hz, b, nb, taken.min(band_frames[b]));
+            let count = taken.min(band_frames[b]);
+            let at = b * n_frames;
+            est.push_frames(&energy[at..at + count], &frequency_hz[at..at + count]);
         }
     }
 
@@ -347,7 +374,8 @@ mod tests {
         out
     }
 
-    /// The bulk path against one push per frame (the default of `FrameSink::frames`): decays
+    /// The bulk path against one push per frame (the default of `FrameSink::frames`, which
+    /// also reads the frames band by band): decays
     /// that end by their drop, on their floor or not at all, bands that stop early, NaN and
     /// negative energies, and trackers that already hold frames.
     #[test]
@@ -391,7 +419,13 @@ mod tests {
                         bulk.push(f);
                         single.push(Frame { ..f });
                     }
-                    let (e, f) = (&energy[3 * already..], &freq[3 * already..]);
+                    // The rest, band by band (the layout of `FrameSink::frames`).
+                    let band_major = |v: &[f64]| -> Vec<f64> {
+                        (0..3)
+                            .flat_map(|b| (already..n).map(move |k| v[3 * k + b]))
+                            .collect()
+                    };
+                    let (e, f) = (&band_major(&energy), &band_major(&freq));
                     let ends: Vec<usize> = band_frames
                         .iter()
                         .map(|&x: &usize| x.saturating_sub(already))

@@ -88,9 +88,14 @@ impl GoyderFrontEnd {
             let fs = self.sample_rate_hz;
             let kernel = &mut self.kernel;
             kernel.clear();
+            // One frame's bands, then each to its band's run of frames.
+            let (mut row_e, mut row_f) = (vec![0.0; nb], vec![0.0; nb]);
             let mut flush = |kernel: &mut Kernel, k: usize| {
-                let range = k * nb..(k + 1) * nb;
-                kernel.take_frame(hop, fs, &mut energy[range.clone()], &mut freq[range]);
+                kernel.take_frame(hop, fs, &mut row_e, &mut row_f);
+                for b in 0..nb {
+                    energy[b * n_frames + k] = row_e[b];
+                    freq[b * n_frames + k] = row_f[b];
+                }
             };
             // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
             // samples), frame boundaries, and the start of the kept part (reversed mode).

@@ -292,8 +292,10 @@ impl OctaveBankFrontEnd {
                     for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
                         let k = k_end - 1 - j;
                         self.take_frame(frame);
-                        frames[k * nb..(k + 1) * nb].copy_from_slice(&self.energy);
-                        freqs[k * nb..(k + 1) * nb].copy_from_slice(&self.freq);
+                        for b in 0..nb {
+                            frames[b * n_frames + k] = self.energy[b];
+                            freqs[b * n_frames + k] = self.freq[b];
+                        }
                     }
                     k_end = k_start;
                 }
