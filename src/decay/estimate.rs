@@ -226,6 +226,7 @@ struct RangeFit {
 
 fn fit_range(
     levels_db: &[f64],
+    last_db: f64,
     times_s: &[f64],
     range: EvaluationRange,
     floor: Floor,
@@ -247,8 +248,10 @@ fn fit_range(
         Floor::RecordEnd(db) if db < -lower => return Err(Flag::TooShort),
         _ => {}
     }
-    let last = *levels_db.last().ok_or(Flag::NoEnergy)?;
-    if last > lower {
+    if levels_db.is_empty() {
+        return Err(Flag::NoEnergy);
+    }
+    if last_db > lower {
         return Err(if noise.is_some() {
             Flag::NoiseLimited
         } else {
@@ -276,7 +279,7 @@ fn fit_range(
         end,
         tail_margin_db: match floor {
             Floor::RecordEnd(db) => db + lower,
-            _ => lower - last,
+            _ => lower - last_db,
         },
     })
 }
@@ -420,11 +423,34 @@ pub fn estimate_from_curve(
     if curve.is_empty() || curve[0] <= 0.0 {
         return DecayEstimate::failed(Flag::NoiseLimited);
     }
-    let levels_db: Vec<f64> = curve
-        .iter()
-        .map(|&e| 10.0 * (e.max(f64::MIN_POSITIVE) / curve[0]).log10())
-        .collect();
-    let times_s: Vec<f64> = (0..curve.len())
+    let level_db = |e: f64| 10.0 * (e.max(f64::MIN_POSITIVE) / curve[0]).log10();
+    // The levels down to the first below the deepest limit of any fit, and the last one: no
+    // fit looks further (a 10 s decay at 2 ms frames is mostly tail, and its logarithms were
+    // 5 % of an octave-bank run).
+    let deepest_db = [
+        settings.edt_limits_db.1,
+        EvaluationRange::T20.limits_db().1,
+        EvaluationRange::T30.limits_db().1,
+        settings.range.limits_db().1,
+    ]
+    .into_iter()
+    .fold(f64::INFINITY, |a, b| {
+        if b.is_nan() {
+            f64::NEG_INFINITY
+        } else {
+            a.min(b)
+        }
+    });
+    let mut levels_db = Vec::with_capacity(curve.len());
+    for &e in &curve {
+        let l = level_db(e);
+        levels_db.push(l);
+        if l < deepest_db {
+            break;
+        }
+    }
+    let last_db = level_db(curve[curve.len() - 1]);
+    let times_s: Vec<f64> = (0..levels_db.len())
         .map(|k| k as f64 * frame_period_s)
         .collect();
     let dynamic_range_db = peak_to_tail_db(energies);
@@ -433,7 +459,7 @@ pub fn estimate_from_curve(
         (None, Some(db)) => Floor::RecordEnd(db),
         (None, None) => Floor::Unknown,
     };
-    let fit_of = |r| fit_range(&levels_db, &times_s, r, floor, settings);
+    let fit_of = |r| fit_range(&levels_db, last_db, &times_s, r, floor, settings);
     let t_of = |r| fit_of(r).ok().and_then(|f| f.fit.t60_s());
 
     let mut est = DecayEstimate {
