@@ -92,11 +92,12 @@ fn regress(times: &[f64], levels: &[f64]) -> Option<(f64, f64)> {
     Some((fit.intercept_db, fit.slope_db_per_s))
 }
 
+/// The index of the first maximum of `v` (a NaN is replaced by the next value; 0 when empty).
 fn argmax(v: &[f64]) -> usize {
-    let mut best = 0;
+    let (mut best, mut best_value) = (0, v.first().copied().unwrap_or(f64::NAN));
     for (i, &x) in v.iter().enumerate() {
-        if x > v[best] || v[best].is_nan() {
-            best = i;
+        if x > best_value || best_value.is_nan() {
+            (best, best_value) = (i, x);
         }
     }
     best
@@ -258,5 +259,15 @@ mod tests {
         };
         let r = lundeby(&e, 10.0, &s);
         assert!(r.is_ok(), "{r:?}");
+    }
+
+    #[test]
+    fn argmax_is_the_first_maximum_past_leading_nans() {
+        let nan = f64::NAN;
+        assert_eq!(argmax(&[]), 0);
+        assert_eq!(argmax(&[1.0, 3.0, 2.0, 3.0]), 1);
+        assert_eq!(argmax(&[nan, nan, 2.0, 5.0, nan, 5.0]), 3);
+        assert_eq!(argmax(&[4.0, nan, 9.0]), 2);
+        assert_eq!(argmax(&[nan]), 0);
     }
 }
