@@ -8,6 +8,7 @@
 pub mod auto_bands;
 pub mod bands;
 pub mod buffered;
+mod gain_memo;
 pub mod goyder;
 mod hann_gain;
 pub mod iec_bands;

@@ -14,8 +14,9 @@ mod kernels;
 mod tables;
 mod transform;
 
+use super::gain_memo::{memoized_flat_gain, FlatGainKey, STFT_TAG};
 use kernels::band_energy_and_peak;
-use tables::{memoized_flat_gain, shared_band_bins, shared_hann, FlatGainKey};
+use tables::{shared_band_bins, shared_hann};
 use transform::{with_frame_buffers, Transform};
 
 use super::simd::Isa;
@@ -415,7 +416,8 @@ impl FrontEnd for StftFrontEnd {
         // It depends only on the transform and the two ranges, and every channel asks for the
         // same few: once per process (its 66 band sums were a third of a short run's time).
         let b = &self.bands[band];
-        let key = FlatGainKey([
+        let key = FlatGainKey(vec![
+            STFT_TAG,
             self.sample_rate_hz.to_bits(),
             self.window.len() as u64,
             self.zero_pad as u64,

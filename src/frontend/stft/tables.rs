@@ -101,29 +101,3 @@ pub(super) fn shared_band_bins(bands: &[Band], bin_hz: f64, n_bins: usize) -> Ar
             .collect()
     })
 }
-
-/// What a flat gain depends on: sample rate, window length, zero padding, the band's edges and
-/// the range's edges (as bits: the same inputs give the same number).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub(super) struct FlatGainKey(pub(super) [u64; 7]);
-
-/// Flat gains kept at most (a run asks for a few per pair of bands; beyond, computed anew).
-const FLAT_GAIN_MEMO_ENTRIES: usize = 1 << 16;
-
-/// The flat gain of `key`, computed by `compute` the first time in the process.
-pub(super) fn memoized_flat_gain(key: FlatGainKey, compute: impl FnOnce() -> f64) -> f64 {
-    type Memo = std::sync::Mutex<std::collections::HashMap<FlatGainKey, f64>>;
-    static MEMO: std::sync::OnceLock<Memo> = std::sync::OnceLock::new();
-    let memo = MEMO.get_or_init(Default::default);
-    if let Some(g) = memo.lock().ok().and_then(|m| m.get(&key).copied()) {
-        return g;
-    }
-    // Computed outside the lock: two threads may both compute it, to the same value.
-    let g = compute();
-    if let Ok(mut m) = memo.lock() {
-        if m.len() < FLAT_GAIN_MEMO_ENTRIES {
-            m.insert(key, g);
-        }
-    }
-    g
-}
