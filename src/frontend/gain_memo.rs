@@ -36,16 +36,18 @@ pub(crate) fn memoized_flat_gain(key: FlatGainKey, compute: impl FnOnce() -> f64
     g
 }
 
-/// The key of a biquad bank's flat gain: the tag, the sample rate, the direction, the range
-/// and every coefficient of the band's sections.
-pub(crate) fn bank_gain_key(
+/// A biquad bank's flat gain over `range_hz`, memoized: Simpson's mean of `stationary_gain`
+/// (the band's [`super::FrontEnd::mode_gain`] at σ = 0), keyed by the tag, the sample rate,
+/// the direction, the range, `extra` numbers and every coefficient of the band's sections.
+pub(crate) fn bank_flat_gain(
     tag: u64,
     sample_rate_hz: f64,
     reversed: bool,
     range_hz: (f64, f64),
     extra: &[f64],
     sections: &[[f64; 5]],
-) -> FlatGainKey {
+    stationary_gain: impl Fn(f64) -> f64,
+) -> f64 {
     let mut key = vec![
         tag,
         sample_rate_hz.to_bits(),
@@ -55,7 +57,9 @@ pub(crate) fn bank_gain_key(
     ];
     key.extend(extra.iter().map(|x| x.to_bits()));
     key.extend(sections.iter().flatten().map(|c| c.to_bits()));
-    FlatGainKey(key)
+    memoized_flat_gain(FlatGainKey(key), || {
+        super::simpson_flat_gain(stationary_gain, range_hz.0, range_hz.1)
+    })
 }
 
 #[cfg(test)]

@@ -292,17 +292,14 @@ impl FrontEnd for GoyderFrontEnd {
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         // The same few for every channel: once per process (see `gain_memo`).
         let (f_h, sections) = &self.designs[band];
-        let reversed = self.settings.direction == FilterDirection::Reversed;
-        let key = super::gain_memo::bank_gain_key(
+        super::gain_memo::bank_flat_gain(
             super::gain_memo::GOYDER_TAG,
             self.sample_rate_hz,
-            reversed,
+            self.settings.direction == FilterDirection::Reversed,
             (lo_hz, hi_hz),
             &[*f_h],
             sections,
-        );
-        super::gain_memo::memoized_flat_gain(key, || {
-            super::simpson_flat_gain(|f_hz| self.mode_gain(band, f_hz, 0.0), lo_hz, hi_hz)
-        })
+            |f_hz| self.mode_gain(band, f_hz, 0.0),
+        )
     }
 }

@@ -425,18 +425,15 @@ impl FrontEnd for OctaveBankFrontEnd {
 
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         // The same few for every channel: once per process (see `gain_memo`).
-        let reversed = self.settings.direction == FilterDirection::Reversed;
-        let key = super::gain_memo::bank_gain_key(
+        super::gain_memo::bank_flat_gain(
             super::gain_memo::OCTAVE_TAG,
             self.sample_rate_hz,
-            reversed,
+            self.settings.direction == FilterDirection::Reversed,
             (lo_hz, hi_hz),
             &[],
             &self.sections[band],
-        );
-        super::gain_memo::memoized_flat_gain(key, || {
-            super::simpson_flat_gain(|f_hz| self.mode_gain(band, f_hz, 0.0), lo_hz, hi_hz)
-        })
+            |f_hz| self.mode_gain(band, f_hz, 0.0),
+        )
     }
 }
 
