@@ -59,24 +59,11 @@ impl DecaySamples {
         }
         match self {
             DecaySamples::Double(v) => f(v),
-            DecaySamples::Single(v) => {
-                let widen = |out: &mut Vec<f64>| {
-                    out.clear();
-                    out.extend(v.iter().map(|&x| f64::from(x)));
-                };
-                WIDENED.with(|cell| match cell.try_borrow_mut() {
-                    Ok(mut out) => {
-                        widen(&mut out);
-                        f(&out)
-                    }
-                    // Only if a decay were filtered inside another's (it is not).
-                    Err(_) => {
-                        let mut out = Vec::new();
-                        widen(&mut out);
-                        f(&out)
-                    }
-                })
-            }
+            DecaySamples::Single(v) => super::with_thread_scratch(&WIDENED, |out| {
+                out.clear();
+                out.extend(v.iter().map(|&x| f64::from(x)));
+                f(out)
+            }),
         }
     }
 
@@ -159,10 +146,15 @@ impl DecayBuffer {
     /// zeros in front where fewer are given (a record that starts at its onset): a backward
     /// filter's output before the onset is what is kept, not the input there.
     pub(crate) fn start_with_pre_roll(&mut self, pre_roll: &[f64], len: usize) {
+        const ZEROS: [f64; 256] = [0.0; 256];
         self.samples.clear();
         let from = pre_roll.len().saturating_sub(len);
-        let given = pre_roll.len() - from;
-        self.push(&vec![0.0; len - given]);
+        let mut zeros = len - (pre_roll.len() - from);
+        while zeros > 0 {
+            let n = zeros.min(ZEROS.len());
+            self.push(&ZEROS[..n]);
+            zeros -= n;
+        }
         self.push(&pre_roll[from..]);
     }
 

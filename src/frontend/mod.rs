@@ -322,10 +322,20 @@ pub(crate) fn with_band_frame_arrays<R>(
         }
         f(&mut arrays.0, &mut arrays.1)
     };
-    BAND_FRAME_ARRAYS.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut arrays) => run(&mut arrays),
-        // Only if a bank's finish ran inside another's (it does not): fresh arrays.
-        Err(_) => run(&mut Default::default()),
+    with_thread_scratch(&BAND_FRAME_ARRAYS, run)
+}
+
+/// Runs `f` with this thread's scratch held in `key`. Scratch kept per thread serves every
+/// channel the thread analyses and stays mapped (and in the cache); kept per front end or made
+/// per decay, it was faulted in again and again. A fresh one only if the scratch is already in
+/// use (a transform or bank running inside another's, which none does).
+pub(crate) fn with_thread_scratch<T: Default + 'static, R>(
+    key: &'static std::thread::LocalKey<std::cell::RefCell<T>>,
+    f: impl FnOnce(&mut T) -> R,
+) -> R {
+    key.with(|cell| match cell.try_borrow_mut() {
+        Ok(mut scratch) => f(&mut scratch),
+        Err(_) => f(&mut T::default()),
     })
 }
 

@@ -135,11 +135,7 @@ thread_local! {
 
 /// Runs `f` with this thread's frame-sum scratch.
 fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>) -> R) -> R {
-    FRAME_SUMS.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut sums) => f(&mut sums),
-        // Only if a bank ran inside another's (it does not): a fresh scratch.
-        Err(_) => f(&mut Vec::new()),
-    })
+    super::with_thread_scratch(&FRAME_SUMS, f)
 }
 
 /// The octave filter bank front end; one instance per channel.

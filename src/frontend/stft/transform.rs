@@ -189,11 +189,7 @@ thread_local! {
 
 /// Runs `f` with this thread's frame buffers.
 pub(super) fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R {
-    FRAME_BUFFERS.with(|cell| match cell.try_borrow_mut() {
-        Ok(mut buffers) => f(&mut buffers),
-        // Only if a frame were computed inside another's (it is not): fresh buffers.
-        Err(_) => f(&mut FrameBuffers::default()),
-    })
+    crate::frontend::with_thread_scratch(&FRAME_BUFFERS, f)
 }
 
 #[cfg(test)]
