@@ -11,6 +11,7 @@ use super::damping::damping_ratio;
 use super::lundeby::{compensated_edc, lundeby, FirstRegressionEnd, LundebySettings};
 use super::range::EvaluationRange;
 use super::regression::{fit_line, LineFit};
+use super::FrequencyCoding;
 
 pub use super::flags::Flag;
 
@@ -397,6 +398,28 @@ pub fn estimate_from_curve(
     f_center_hz: f64,
     settings: &EstimateSettings,
 ) -> DecayEstimate {
+    estimate_from_coded_curve(
+        edc,
+        energies,
+        frequencies_hz,
+        FrequencyCoding::Hz,
+        frame_period_s,
+        f_center_hz,
+        settings,
+    )
+}
+
+/// [`estimate_from_curve`] with the per-frame frequencies coded by `coding`: only the fitted
+/// frames' are decoded.
+pub fn estimate_from_coded_curve(
+    edc: &[f64],
+    energies: &[f64],
+    frequencies: &[f64],
+    coding: FrequencyCoding,
+    frame_period_s: f64,
+    f_center_hz: f64,
+    settings: &EstimateSettings,
+) -> DecayEstimate {
     if edc.is_empty() || edc[0] <= 0.0 || !edc[0].is_finite() {
         return DecayEstimate::failed(Flag::NoEnergy);
     }
@@ -493,8 +516,8 @@ pub fn estimate_from_curve(
 
     // Frequency present in the band: energy-weighted over the fitted frames.
     let (mut wsum, mut fsum) = (0.0, 0.0);
-    for k in w_first..w_end.min(frequencies_hz.len()) {
-        let f = frequencies_hz[k];
+    for k in w_first..w_end.min(frequencies.len()) {
+        let f = coding.to_hz(frequencies[k]);
         if f.is_finite() && f > 0.0 {
             wsum += energies[k];
             fsum += energies[k] * f;

@@ -9,6 +9,7 @@
 pub mod damping;
 pub mod estimate;
 pub mod flags;
+pub mod frequency;
 pub mod leakage;
 pub mod lundeby;
 pub mod oracle;
@@ -18,6 +19,7 @@ pub mod restarts;
 pub mod schroeder;
 
 pub use estimate::{DecayEstimate, Flag};
+pub use frequency::FrequencyCoding;
 pub use range::EvaluationRange;
 pub use schroeder::OnlineSchroeder;
 
@@ -32,11 +34,12 @@ pub trait DecayEstimator: Send {
     fn push_frame(&mut self, energy: f64, frequency_hz: f64);
 
     /// Adds frames in order: frame k's energy and frequency are `energy[k]` and
-    /// `frequency_hz[k]` (a buffered bank's frames of one band). The same as one
-    /// [`DecayEstimator::push_frame`] per frame.
-    fn push_frames(&mut self, energy: &[f64], frequency_hz: &[f64]) {
-        for (&e, &f) in energy.iter().zip(frequency_hz) {
-            self.push_frame(e, f);
+    /// `frequency[k]`, the frequency coded by `coding` (a buffered bank's frames of one band).
+    /// The same as one [`DecayEstimator::push_frame`] per frame with the frequency decoded; an
+    /// estimator may keep the values coded and decode those it reads.
+    fn push_frames(&mut self, energy: &[f64], frequency: &[f64], coding: FrequencyCoding) {
+        for (&e, &f) in energy.iter().zip(frequency) {
+            self.push_frame(e, coding.to_hz(f));
         }
     }
 

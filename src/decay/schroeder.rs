@@ -7,8 +7,8 @@
 //! is 10⁻⁶ E_total) and keeps 16 bytes per frame (energy and frequency) instead of 32 with
 //! stored prefix sums: 100 000 bands of one decay fit in the memory budget.
 
-use super::estimate::{estimate_from_curve, DecayEstimate, EstimateSettings};
-use super::DecayEstimator;
+use super::estimate::{estimate_from_coded_curve, DecayEstimate, EstimateSettings};
+use super::{DecayEstimator, FrequencyCoding};
 
 /// A band's decay starts where its energy first comes within this many dB of its peak: ISO
 /// 3382-1's start of an impulse response, applied per band as pyrato's `time_shift` does. The
@@ -62,7 +62,9 @@ pub struct OnlineSchroeder {
     f_center_hz: f64,
     settings: EstimateSettings,
     energies: Vec<f64>,
-    frequencies_hz: Vec<f64>,
+    /// Per frame, the frequency present, coded as `coding` says.
+    frequencies: Vec<f64>,
+    coding: FrequencyCoding,
     running: CompensatedSum,
 }
 
@@ -74,7 +76,8 @@ impl OnlineSchroeder {
             f_center_hz,
             settings,
             energies: Vec::new(),
-            frequencies_hz: Vec::new(),
+            frequencies: Vec::new(),
+            coding: FrequencyCoding::Hz,
             running: CompensatedSum::default(),
         }
     }
@@ -102,9 +105,16 @@ impl OnlineSchroeder {
         &self.energies
     }
 
-    /// The per-frame dominant frequencies so far (Hz, NaN where unknown).
-    pub fn frequencies_hz(&self) -> &[f64] {
-        &self.frequencies_hz
+    /// The per-frame dominant frequencies so far (Hz, NaN where unknown), decoded here if the
+    /// front end handed them over coded.
+    pub fn frequencies_hz(&self) -> std::borrow::Cow<'_, [f64]> {
+        self.coding.decode(&self.frequencies)
+    }
+
+    /// Turns the frequencies held into Hz (before frames of another coding join them).
+    fn decode_frequencies(&mut self) {
+        self.coding.decode_in_place(&mut self.frequencies);
+        self.coding = FrequencyCoding::Hz;
     }
 
     /// Time between frames in seconds.
@@ -122,10 +132,11 @@ impl OnlineSchroeder {
     pub fn estimate(&self) -> DecayEstimate {
         let start = self.start_frame();
         let edc = self.edc();
-        estimate_from_curve(
+        estimate_from_coded_curve(
             &edc[start..],
             &self.energies[start..],
-            &self.frequencies_hz[start..],
+            &self.frequencies[start..],
+            self.coding,
             self.frame_period_s,
             self.f_center_hz,
             &self.settings,
@@ -145,17 +156,20 @@ fn kept_energy(energy: f64) -> f64 {
 
 impl DecayEstimator for OnlineSchroeder {
     fn push_frame(&mut self, energy: f64, frequency_hz: f64) {
+        if self.coding != FrequencyCoding::Hz {
+            self.decode_frequencies();
+        }
         let e = kept_energy(energy);
         self.energies.push(e);
-        self.frequencies_hz.push(frequency_hz);
+        self.frequencies.push(frequency_hz);
         self.running.add(e);
     }
 
-    fn push_frames(&mut self, energy: &[f64], frequency_hz: &[f64]) {
+    fn push_frames(&mut self, energy: &[f64], frequency: &[f64], coding: FrequencyCoding) {
         // Written in place with the running sum in a local: a push per frame kept the sum and
         // the length in memory (a buffered bank hands over 5000 frames per band and decay at
         // 2 ms frames).
-        let n = energy.len().min(frequency_hz.len());
+        let n = energy.len().min(frequency.len());
         let start = self.energies.len();
         self.energies.resize(start + n, 0.0);
         let mut running = self.running;
@@ -164,7 +178,19 @@ impl DecayEstimator for OnlineSchroeder {
             running.add(*kept);
         }
         self.running = running;
-        self.frequencies_hz.extend_from_slice(&frequency_hz[..n]);
+        // Kept as coded (an estimate decodes only the frames it reads) unless the frames held
+        // are coded otherwise: then all in Hz.
+        if self.frequencies.is_empty() {
+            self.coding = coding;
+        }
+        if coding == self.coding {
+            self.frequencies.extend_from_slice(&frequency[..n]);
+        } else {
+            self.decode_frequencies();
+            let from = self.frequencies.len();
+            self.frequencies.extend_from_slice(&frequency[..n]);
+            coding.decode_in_place(&mut self.frequencies[from..]);
+        }
     }
 
     fn provisional(&self) -> DecayEstimate {
@@ -177,18 +203,20 @@ impl DecayEstimator for OnlineSchroeder {
 
     fn reset(&mut self) {
         self.energies.clear();
-        self.frequencies_hz.clear();
+        self.frequencies.clear();
+        self.coding = FrequencyCoding::Hz;
         self.running = CompensatedSum::default();
     }
 
     fn reserve_frames(&mut self, frames: usize) {
         reserve_history(&mut self.energies, frames);
-        reserve_history(&mut self.frequencies_hz, frames);
+        reserve_history(&mut self.frequencies, frames);
     }
 
     fn release(&mut self) {
         give_back_history(std::mem::take(&mut self.energies));
-        give_back_history(std::mem::take(&mut self.frequencies_hz));
+        give_back_history(std::mem::take(&mut self.frequencies));
+        self.coding = FrequencyCoding::Hz;
         self.running = CompensatedSum::default();
     }
 
@@ -313,26 +341,69 @@ mod tests {
                 }
             })
             .collect();
+        // The same frequencies as cosines of 2πf/fs.
+        let fs = 4096.0;
+        let cosines: Vec<f64> = freqs
+            .iter()
+            .map(|f| (2.0 * std::f64::consts::PI * f / fs).cos())
+            .collect();
+        let cosine = FrequencyCoding::Cosine { sample_rate_hz: fs };
         let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
         for count in [0, 1, 2, 499, 500] {
-            let settings = EstimateSettings::default();
-            let mut one_by_one = OnlineSchroeder::new(0.002, 100.0, settings);
-            let mut bulk = one_by_one.clone();
-            one_by_one.push_frame(0.5, 80.0);
-            bulk.push_frame(0.5, 80.0);
-            for k in 0..count {
-                one_by_one.push_frame(energy[k], freqs[k]);
+            for coded in [false, true] {
+                let settings = EstimateSettings::default();
+                let mut one_by_one = OnlineSchroeder::new(0.002, 100.0, settings);
+                let mut bulk = one_by_one.clone();
+                // A frame before the bulk (held in Hz), or none (the bulk's coding is kept).
+                if !coded {
+                    one_by_one.push_frame(0.5, 80.0);
+                    bulk.push_frame(0.5, 80.0);
+                }
+                let (values, coding) = if coded {
+                    (&cosines, cosine)
+                } else {
+                    (&freqs, FrequencyCoding::Hz)
+                };
+                for k in 0..count {
+                    one_by_one.push_frame(energy[k], coding.to_hz(values[k]));
+                }
+                bulk.push_frames(&energy[..count], &values[..count], coding);
+                // Coded frames after Hz ones and the other way round.
+                one_by_one.push_frames(&energy[..3], &values[..3], coding);
+                bulk.push_frames(&energy[..3], &values[..3], coding);
+                for (e, v) in [(0.25, 300.0), (0.125, 301.0)] {
+                    one_by_one.push_frame(e, v);
+                }
+                bulk.push_frame(0.25, 300.0);
+                bulk.push_frames(&[0.125], &[301.0], FrequencyCoding::Hz);
+                let what = format!("{count} frames, coded {coded}");
+                assert_eq!(one_by_one.energies(), bulk.energies(), "{what}");
+                assert_eq!(
+                    bits(&one_by_one.frequencies_hz()),
+                    bits(&bulk.frequencies_hz()),
+                    "{what}"
+                );
+                assert_eq!(
+                    one_by_one.total_energy().to_bits(),
+                    bulk.total_energy().to_bits()
+                );
+                assert_eq!(
+                    format!("{:?}", one_by_one.estimate()),
+                    format!("{:?}", bulk.estimate()),
+                    "{what}"
+                );
             }
-            bulk.push_frames(&energy[..count], &freqs[..count]);
-            assert_eq!(one_by_one.energies(), bulk.energies(), "{count}");
-            assert_eq!(
-                bits(one_by_one.frequencies_hz()),
-                bits(bulk.frequencies_hz())
-            );
-            assert_eq!(
-                one_by_one.total_energy().to_bits(),
-                bulk.total_energy().to_bits()
-            );
         }
+        // Kept coded until read: an estimate from cosines is the one from their frequencies.
+        let mut hz = OnlineSchroeder::new(0.002, 100.0, EstimateSettings::default());
+        let mut coded = hz.clone();
+        let decay: Vec<f64> = (0..500).map(|k| (-(k as f64) * 0.02).exp()).collect();
+        let decoded: Vec<f64> = cosines.iter().map(|&c| cosine.to_hz(c)).collect();
+        hz.push_frames(&decay, &decoded, FrequencyCoding::Hz);
+        coded.push_frames(&decay, &cosines, cosine);
+        assert_eq!(coded.coding, cosine);
+        let (a, b) = (hz.estimate(), coded.estimate());
+        assert!(a.f_dominant_hz.is_some());
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
     }
 }

@@ -70,6 +70,12 @@ fn acos_one(x: f64) -> f64 {
     }
 }
 
+/// acos(value) · scale for one value, bit for bit what [`acos_scaled_in_place`] gives it.
+#[inline]
+pub(crate) fn acos_scaled(value: f64, scale: f64) -> f64 {
+    acos_one(value) * scale
+}
+
 /// `values[i] = acos(values[i]) · scale` for every i (inputs in [−1, 1]; NaN stays NaN).
 pub(crate) fn acos_scaled_in_place(isa: Isa, values: &mut [f64], scale: f64) {
     #[inline(always)]

@@ -12,11 +12,12 @@ mod gain_memo;
 pub mod goyder;
 mod hann_gain;
 pub mod iec_bands;
-mod lane_acos;
+pub(crate) mod lane_acos;
 pub mod octave_bank;
 pub(crate) mod simd;
 pub mod stft;
 
+use crate::decay::FrequencyCoding;
 pub use bands::Band;
 pub use buffered::FilterDirection;
 
@@ -58,11 +59,18 @@ pub trait FrameSink {
 
     /// A whole decay's frames at once (a buffered bank), band by band: with n =
     /// `energy.len() / bands` frames, band b's are `energy[b · n .. (b + 1) · n]` (frequencies
-    /// likewise), and band b takes part up to frame `band_frames[b]` (exclusive; `bands` =
-    /// `band_frames.len()`). The same as one [`FrameSink::frame`] per frame, in order, with
-    /// `active` marking the bands still in; a sink may take them in bulk (each band's frames
-    /// contiguous: a frame-major layout had every band's pass stride over all of them).
-    fn frames(&mut self, energy: &[f64], frequency_hz: &[f64], band_frames: &[usize]) {
+    /// likewise, coded by `coding`), and band b takes part up to frame `band_frames[b]`
+    /// (exclusive; `bands` = `band_frames.len()`). The same as one [`FrameSink::frame`] per
+    /// frame, in order, with the frequencies decoded and `active` marking the bands still in; a
+    /// sink may take them in bulk (each band's frames contiguous: a frame-major layout had every
+    /// band's pass stride over all of them) and keep the frequencies coded.
+    fn frames(
+        &mut self,
+        energy: &[f64],
+        frequency: &[f64],
+        coding: FrequencyCoding,
+        band_frames: &[usize],
+    ) {
         let nb = band_frames.len();
         if nb == 0 {
             return;
@@ -73,7 +81,7 @@ pub trait FrameSink {
             for b in 0..nb {
                 active[b] = k < band_frames[b];
                 row_e[b] = energy[b * n + k];
-                row_f[b] = frequency_hz[b * n + k];
+                row_f[b] = coding.to_hz(frequency[b * n + k]);
             }
             self.frame(Frame {
                 energy: &row_e,
@@ -347,7 +355,8 @@ pub(crate) fn with_thread_scratch<T: Default + 'static, R>(
 pub(crate) fn emit_band_frames(
     sink: &mut dyn FrameSink,
     energy: &[f64],
-    frequency_hz: &[f64],
+    frequency: &[f64],
+    coding: FrequencyCoding,
     band_frames: &[usize],
 ) {
     let nb = band_frames.len();
@@ -355,5 +364,5 @@ pub(crate) fn emit_band_frames(
         return;
     }
     sink.expect_frames(energy.len() / nb);
-    sink.frames(energy, frequency_hz, band_frames);
+    sink.frames(energy, frequency, coding, band_frames);
 }

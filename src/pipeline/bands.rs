@@ -4,7 +4,7 @@
 use crate::decay::estimate::EstimateSettings;
 use crate::decay::leakage::{flag_leakage, BandLevel, LeakageModel};
 use crate::decay::restarts::first_restart;
-use crate::decay::{DecayEstimate, DecayEstimator, Flag, OnlineSchroeder};
+use crate::decay::{DecayEstimate, DecayEstimator, Flag, FrequencyCoding, OnlineSchroeder};
 use crate::frontend::{Band, Frame, FrontEnd};
 
 /// Estimates every band of one decay, given from its onset, in one go (no threads), with the
@@ -171,6 +171,24 @@ impl<E: DecayEstimator> BandTrackers<E> {
         c.push(0.0);
     }
 
+    /// Appends `frames` entries to one band's running sum `c` (which holds its leading 0): the
+    /// energies of `active`, then the last frame repeated (as [`BandTrackers::add_to_sums`]
+    /// does for a band no longer active).
+    fn extend_sum(c: &mut Vec<f64>, active: &[f64], frames: usize) {
+        c.reserve(frames);
+        let mut last = c[c.len() - 1];
+        let mut before = c.len().checked_sub(2).map(|j| c[j]);
+        for k in 0..frames {
+            let e = match active.get(k) {
+                Some(&e) => e,
+                None => before.map_or(0.0, |p| last - p),
+            };
+            let next = last + e;
+            c.push(next);
+            (before, last) = (Some(last), next);
+        }
+    }
+
     /// Adds one frame to every band's running sum; a band no longer `active` (buffered banks:
     /// past its own end) repeats its last frame, which leaves the floor test neutral.
     fn add_to_sums(&mut self, energy: &[f64], active: impl Fn(usize) -> bool) {
@@ -216,48 +234,45 @@ impl<E: DecayEstimator> BandTrackers<E> {
     /// decay ends; then each band's estimator takes its frames up to there in one run (a call
     /// per frame and band, across all bands, was a fifth of a buffered bank's run at 2 ms
     /// frames).
-    pub(super) fn push_all(&mut self, energy: &[f64], frequency_hz: &[f64], band_frames: &[usize]) {
+    pub(super) fn push_all(
+        &mut self,
+        energy: &[f64],
+        frequency: &[f64],
+        coding: FrequencyCoding,
+        band_frames: &[usize],
+    ) {
         let nb = band_frames.len();
         if nb == 0 || self.ended {
             return;
         }
         debug_assert_eq!(nb, self.estimators.len());
         let n_frames = energy.len() / nb;
-        // The running sums get an entry per frame written in place (sized for every frame,
-        // cut back to the frames taken): a push per band and frame kept the lengths and the
-        // flags in memory.
-        let mut first_entry = Vec::with_capacity(self.cumulative.len());
-        for c in &mut self.cumulative {
-            if c.is_empty() {
-                Self::restart_sum(c);
+        // Band by band, over every frame: which frames are low in every active band (against
+        // the band's running peak), and the running sums (cut back to the frames taken). Frame
+        // by frame across the bands, the peaks and sums went through memory at every step.
+        let mut all_low = vec![true; n_frames];
+        let mut peaks = self.peak.clone();
+        let mut first_entry = vec![0; self.cumulative.len()];
+        for (b, peak) in peaks.iter_mut().enumerate() {
+            let band = &energy[b * n_frames..(b + 1) * n_frames];
+            let active = band_frames[b].min(n_frames);
+            for (low, &e) in all_low.iter_mut().zip(&band[..active]) {
+                *peak = peak.max(e);
+                *low &= e <= *peak * self.end_factor;
             }
-            first_entry.push(c.len());
-            c.resize(c.len() + n_frames, 0.0);
+            if let Some(c) = self.cumulative.get_mut(b) {
+                if c.is_empty() {
+                    Self::restart_sum(c);
+                }
+                first_entry[b] = c.len();
+                Self::extend_sum(c, &band[..active], n_frames);
+            }
         }
+        // Frame by frame: where the decay ends.
         let mut taken = n_frames;
-        for k in 0..n_frames {
-            let mut all_low = true;
-            for b in 0..nb {
-                let e = energy[b * n_frames + k];
-                let active = k < band_frames[b];
-                if active {
-                    self.peak[b] = self.peak[b].max(e);
-                    all_low &= e <= self.peak[b] * self.end_factor;
-                }
-                if let Some(c) = self.cumulative.get_mut(b) {
-                    // A band no longer active repeats its last frame (see `add_to_sums`).
-                    let i = first_entry[b] + k;
-                    let last = c[i - 1];
-                    let e = if active {
-                        e
-                    } else {
-                        i.checked_sub(2).map_or(0.0, |j| last - c[j])
-                    };
-                    c[i] = last + e;
-                }
-            }
+        for (k, &low) in all_low.iter().enumerate() {
             self.frames += 1;
-            self.ended = (all_low && self.end_factor > 0.0) || self.on_floor();
+            self.ended = (low && self.end_factor > 0.0) || self.on_floor();
             if self.ended {
                 taken = k + 1;
                 break;
@@ -266,10 +281,20 @@ impl<E: DecayEstimator> BandTrackers<E> {
         for (c, first) in self.cumulative.iter_mut().zip(first_entry) {
             c.truncate(first + taken);
         }
+        // The peaks as far as the frames taken.
+        if taken == n_frames {
+            self.peak = peaks;
+        } else {
+            for (b, peak) in self.peak.iter_mut().enumerate() {
+                let at = b * n_frames;
+                let count = taken.min(band_frames[b]);
+                *peak = energy[at..at + count].iter().fold(*peak, |p, &e| p.max(e));
+            }
+        }
         for (b, est) in self.estimators.iter_mut().enumerate() {
             let count = taken.min(band_frames[b]);
             let at = b * n_frames;
-            est.push_frames(&energy[at..at + count], &frequency_hz[at..at + count]);
+            est.push_frames(&energy[at..at + count], &frequency[at..at + count], coding);
         }
     }
 
@@ -316,8 +341,14 @@ impl<E: DecayEstimator> crate::frontend::FrameSink for BandTrackers<E> {
         self.push(frame);
     }
 
-    fn frames(&mut self, energy: &[f64], frequency_hz: &[f64], band_frames: &[usize]) {
-        self.push_all(energy, frequency_hz, band_frames);
+    fn frames(
+        &mut self,
+        energy: &[f64],
+        frequency: &[f64],
+        coding: FrequencyCoding,
+        band_frames: &[usize],
+    ) {
+        self.push_all(energy, frequency, coding, band_frames);
     }
 
     fn expect_frames(&mut self, frames: usize) {
@@ -406,7 +437,22 @@ mod tests {
             (200.0, floors[1]),
         ] {
             for band_frames in [[n, n, n], [n, 150, 60], [n, 250, 90], [0, n, 3]] {
-                for already in [0usize, 5] {
+                for (already, coding) in [
+                    (0usize, FrequencyCoding::Hz),
+                    (5, FrequencyCoding::Hz),
+                    (
+                        0,
+                        FrequencyCoding::Cosine {
+                            sample_rate_hz: 4096.0,
+                        },
+                    ),
+                    (
+                        5,
+                        FrequencyCoding::Cosine {
+                            sample_rate_hz: 4096.0,
+                        },
+                    ),
+                ] {
                     let (mut bulk, mut single) =
                         (trackers(end_drop_db, floor), trackers(end_drop_db, floor));
                     // Some frames pushed one by one before the bulk.
@@ -425,19 +471,28 @@ mod tests {
                             .flat_map(|b| (already..n).map(move |k| v[3 * k + b]))
                             .collect()
                     };
-                    let (e, f) = (&band_major(&energy), &band_major(&freq));
+                    // The bulk's frequencies coded as a buffered bank may hand them over.
+                    let coded: Vec<f64> = match coding {
+                        FrequencyCoding::Hz => band_major(&freq),
+                        FrequencyCoding::Cosine { sample_rate_hz } => band_major(&freq)
+                            .iter()
+                            .map(|f| (2.0 * std::f64::consts::PI * f / sample_rate_hz).cos())
+                            .collect(),
+                    };
+                    let (e, f) = (&band_major(&energy), &coded);
                     let ends: Vec<usize> = band_frames
                         .iter()
                         .map(|&x: &usize| x.saturating_sub(already))
                         .collect();
-                    FrameSink::frames(&mut bulk, e, f, &ends);
+                    FrameSink::frames(&mut bulk, e, f, coding, &ends);
                     // The trait's default: one frame at a time.
                     let mut one_by_one = |frame: Frame<'_>| single.push(frame);
-                    FrameSink::frames(&mut one_by_one, e, f, &ends);
+                    FrameSink::frames(&mut one_by_one, e, f, coding, &ends);
                     assert_eq!(
                         state(&bulk),
                         state(&single),
-                        "drop {end_drop_db} floor {:?} bands {band_frames:?} after {already}",
+                        "drop {end_drop_db} floor {:?} bands {band_frames:?} after {already} \
+                         {coding:?}",
                         floor.is_some()
                     );
                     cases += 1;

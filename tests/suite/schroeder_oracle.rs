@@ -35,7 +35,7 @@ proptest! {
             }
             prop_assert!((a - b).abs() <= 1e-9 * b, "k={} online={} oracle={}", k, a, b);
         }
-        let from_oracle = estimate_from_curve(&oracle, &e, online.frequencies_hz(), 0.01, 100.0,
+        let from_oracle = estimate_from_curve(&oracle, &e, &online.frequencies_hz(), 0.01, 100.0,
             &EstimateSettings::default());
         let from_online = online.provisional();
         for (a, b) in [(from_online.t30_s, from_oracle.t30_s), (from_online.t20_s, from_oracle.t20_s),

@@ -32,6 +32,7 @@ use kernel::{band_design, Kernel, RESYNC_SAMPLES};
 use super::buffered::DecayBuffer;
 pub use super::buffered::FilterDirection;
 use super::{Band, FrameSink, FrontEnd, Resolution};
+use crate::decay::FrequencyCoding;
 use crate::error::{Error, Result};
 
 /// Settings of the Goyder-style filter bank.
@@ -143,7 +144,7 @@ impl GoyderFrontEnd {
                 .iter()
                 .map(|c| n_total.saturating_sub(*c) / hop)
                 .collect();
-            super::emit_band_frames(sink, energy, freq, &band_frames);
+            super::emit_band_frames(sink, energy, freq, FrequencyCoding::Hz, &band_frames);
         });
     }
 

@@ -25,6 +25,7 @@ use kernel::{FrameSums, Kernel};
 use super::buffered::{DecayBuffer, FilterDirection};
 use super::simd::Isa;
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
+use crate::decay::FrequencyCoding;
 use crate::error::{Error, Result};
 
 /// Settings of the octave filter bank.
@@ -296,8 +297,11 @@ impl OctaveBankFrontEnd {
                     k_end = k_start;
                 }
             });
-            Self::cosines_to_hz(self.isa, self.sample_rate_hz, freqs);
-            super::emit_band_frames(sink, frames, freqs, &band_frames);
+            // The cosines as they are: an estimate decodes only the frames it fits.
+            let coding = FrequencyCoding::Cosine {
+                sample_rate_hz: self.sample_rate_hz,
+            };
+            super::emit_band_frames(sink, frames, freqs, coding, &band_frames);
         });
         self.clear_filters();
     }
