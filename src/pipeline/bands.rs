@@ -175,18 +175,18 @@ impl<E: DecayEstimator> BandTrackers<E> {
     /// energies of `active`, then the last frame repeated (as [`BandTrackers::add_to_sums`]
     /// does for a band no longer active).
     fn extend_sum(c: &mut Vec<f64>, active: &[f64], frames: usize) {
-        c.reserve(frames);
         let mut last = c[c.len() - 1];
         let mut before = c.len().checked_sub(2).map(|j| c[j]);
-        for k in 0..frames {
+        // From an iterator of known length: no capacity test per entry, which had the running
+        // values go through memory at every step.
+        c.extend((0..frames).map(|k| {
             let e = match active.get(k) {
                 Some(&e) => e,
                 None => before.map_or(0.0, |p| last - p),
             };
-            let next = last + e;
-            c.push(next);
-            (before, last) = (Some(last), next);
-        }
+            (before, last) = (Some(last), last + e);
+            last
+        }));
     }
 
     /// Adds one frame to every band's running sum; a band no longer `active` (buffered banks:
@@ -256,10 +256,12 @@ impl<E: DecayEstimator> BandTrackers<E> {
         for (b, peak) in peaks.iter_mut().enumerate() {
             let band = &energy[b * n_frames..(b + 1) * n_frames];
             let active = band_frames[b].min(n_frames);
+            let mut p = *peak;
             for (low, &e) in all_low.iter_mut().zip(&band[..active]) {
-                *peak = peak.max(e);
-                *low &= e <= *peak * self.end_factor;
+                p = p.max(e);
+                *low &= e <= p * self.end_factor;
             }
+            *peak = p;
             if let Some(c) = self.cumulative.get_mut(b) {
                 if c.is_empty() {
                     Self::restart_sum(c);
