@@ -74,17 +74,25 @@ fn db(x: f64) -> f64 {
     10.0 * x.log10()
 }
 
-/// Block means of `data` with `block` values per block and the block-centre times.
-fn smooth(data: &[f64], rate_hz: f64, block: usize) -> (Vec<f64>, Vec<f64>) {
+/// Block means of `data` with `block` values per block.
+fn smooth(data: &[f64], block: usize) -> Vec<f64> {
     let n_blocks = data.len() / block;
     let mut means = block_sums(&data[..n_blocks * block], block);
     for m in &mut means {
         *m /= block as f64;
     }
-    let times = (0..n_blocks)
-        .map(|b| (0.5 + b as f64) * block as f64 / rate_hz)
-        .collect();
-    (means, times)
+    means
+}
+
+/// The centre time, s, of block `b` of `block` values at `rate_hz`. Computed for the blocks a
+/// regression takes only: a division per block of the whole decay was a tenth of this method.
+fn block_time_s(b: usize, block: usize, rate_hz: f64) -> f64 {
+    (0.5 + b as f64) * block as f64 / rate_hz
+}
+
+/// The centre times of blocks `range`.
+fn block_times_s(range: std::ops::Range<usize>, block: usize, rate_hz: f64) -> Vec<f64> {
+    range.map(|b| block_time_s(b, block, rate_hz)).collect()
 }
 
 /// Blocks summed side by side in [`block_sums`]: independent additions in flight at once.
@@ -145,7 +153,7 @@ pub fn lundeby(
 ) -> Result<LundebyResult, LundebyFailure> {
     let n = energy.len();
     let block = ((settings.initial_block_s * rate_hz).round() as usize).max(1);
-    let (smoothed, times) = smooth(energy, rate_hz, block);
+    let smoothed = smooth(energy, block);
     if smoothed.len() < 3 {
         return Err(LundebyFailure::TooShort);
     }
@@ -167,7 +175,8 @@ pub fn lundeby(
         return Err(LundebyFailure::LowSnr);
     }
     let levels: Vec<f64> = smoothed[start..stop].iter().map(|&x| db(x)).collect();
-    let (mut a, mut b) = regress(&times[start..stop], &levels).ok_or(LundebyFailure::LowSnr)?;
+    let (mut a, mut b) = regress(&block_times_s(start..stop, block, rate_hz), &levels)
+        .ok_or(LundebyFailure::LowSnr)?;
     if b == 0.0 || !b.is_finite() {
         return Err(LundebyFailure::NoDecay);
     }
@@ -175,10 +184,13 @@ pub fn lundeby(
     let mut crossing = (db(noise0) - a) / b;
     // (5) new block length: `intervals_per_10db` blocks per 10 dB.
     let blocks_in_decay = dyn_range / -10.0 * settings.intervals_per_10db;
-    let block2 =
-        (((times[stop] - times[start]) / blocks_in_decay * rate_hz).round() as usize).max(1);
+    let block2 = (((block_time_s(stop, block, rate_hz) - block_time_s(start, block, rate_hz))
+        / blocks_in_decay
+        * rate_hz)
+        .round() as usize)
+        .max(1);
     // (6) smooth again.
-    let (smoothed2, times2) = smooth(energy, rate_hz, block2);
+    let smoothed2 = smooth(energy, block2);
     if smoothed2.len() < 3 {
         return Err(LundebyFailure::TooShort);
     }
@@ -213,7 +225,11 @@ pub fn lundeby(
             .iter()
             .map(|&x| db(x))
             .collect();
-        (a, b) = regress(&times2[start_loop..stop_loop], &levels).ok_or(LundebyFailure::LowSnr)?;
+        (a, b) = regress(
+            &block_times_s(start_loop..stop_loop, block2, rate_hz),
+            &levels,
+        )
+        .ok_or(LundebyFailure::LowSnr)?;
         if b >= 0.0 {
             return Err(LundebyFailure::NoDecay);
         }
