@@ -320,7 +320,7 @@ fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
         tail > 0.0 && before < 2.0 * tail
     };
     let tail = mean(&energies[n - (n / 10).max(2)..]);
-    let peak = energies.iter().cloned().fold(0.0, f64::max);
+    let peak = super::peak_or_zero(energies);
     if tail <= 0.0 || peak <= 0.0 {
         return None;
     }
@@ -331,7 +331,7 @@ fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
 /// Peak frame energy over the mean of the last tenth of the frames, in dB (`None` when there are
 /// fewer than two frames or no energy at the end).
 fn peak_to_tail_db(energies: &[f64]) -> Option<f64> {
-    let peak = energies.iter().cloned().fold(0.0, f64::max);
+    let peak = super::peak_or_zero(energies);
     if energies.len() < 2 || peak <= 0.0 {
         return None;
     }

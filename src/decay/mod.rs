@@ -70,3 +70,41 @@ pub trait DecayEstimator: Send {
     /// [`schroeder::DECAY_START_LEVEL_DB`] of its peak) on. The test for merged hits reads it.
     fn decay_energies(&self) -> &[f64];
 }
+
+/// The largest of `values` and 0, NaN ignored: the value `fold(0.0, f64::max)` gives, found in
+/// four independent lanes. One fold waits on every comparison before the next; a band's peak
+/// frame energy is looked up several times per estimate, over 5000 frames per band at 2 ms
+/// frames.
+pub(crate) fn peak_or_zero(values: &[f64]) -> f64 {
+    let mut lanes = [0.0f64; 4];
+    let quads = values.chunks_exact(4);
+    let rest = quads.remainder();
+    for q in quads {
+        for (l, &v) in lanes.iter_mut().zip(q) {
+            *l = l.max(v);
+        }
+    }
+    let peak = lanes.iter().cloned().fold(0.0, f64::max);
+    rest.iter().cloned().fold(peak, f64::max)
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn peak_in_lanes_is_the_plain_fold() {
+        let odd = [f64::NAN, -1.0, 0.0, 3.5, f64::INFINITY, 1e-300, 7.0];
+        for n in 0..40 {
+            for at in 0..n {
+                let mut v: Vec<f64> = (0..n).map(|k| odd[(k * 5 + at) % odd.len()]).collect();
+                v[at] = 1e3 * (at as f64 + 1.0);
+                let plain = v.iter().cloned().fold(0.0, f64::max);
+                assert_eq!(super::peak_or_zero(&v), plain, "{v:?}");
+                let finite: Vec<f64> = v.iter().map(|x| x.min(1e9)).collect();
+                let plain = finite.iter().cloned().fold(0.0, f64::max);
+                assert_eq!(super::peak_or_zero(&finite), plain, "{finite:?}");
+            }
+        }
+        assert_eq!(super::peak_or_zero(&[]), 0.0);
+        assert_eq!(super::peak_or_zero(&[f64::NAN, -2.0]), 0.0);
+    }
+}

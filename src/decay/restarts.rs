@@ -23,7 +23,7 @@ const SCAN_CHUNK: usize = 16;
 /// how many frames a new hit takes to enter the front end's window fully.
 pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
     let g = rise_frames.max(1);
-    let peak = peak_energy(energies);
+    let peak = super::peak_or_zero(energies);
     if peak <= 0.0 {
         return None;
     }
@@ -54,21 +54,6 @@ pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
         k += 1;
     }
     None
-}
-
-/// The largest energy and 0 (NaN ignored), as `fold(0.0, f64::max)` gives it, in four
-/// independent lanes.
-fn peak_energy(energies: &[f64]) -> f64 {
-    let mut lanes = [0.0f64; 4];
-    let quads = energies.chunks_exact(4);
-    let rest = quads.remainder();
-    for q in quads {
-        for (l, &e) in lanes.iter_mut().zip(q) {
-            *l = l.max(e);
-        }
-    }
-    let peak = lanes.iter().cloned().fold(0.0, f64::max);
-    rest.iter().cloned().fold(peak, f64::max)
 }
 
 #[cfg(test)]
@@ -119,8 +104,6 @@ mod tests {
                 }
             }
         }
-        assert_eq!(peak_energy(&[f64::NAN, -1.0, f64::NAN]), 0.0);
-        assert_eq!(peak_energy(&[1.0, 2.0, f64::NAN, 7.0, 3.0, 9.0]), 9.0);
     }
 
     /// Frame energies of a decaying mode pair (amplitudes a, b, Δf apart) every `dt` s.

@@ -287,7 +287,7 @@ pub(crate) fn reserve_history(history: &mut Vec<f64>, additional: usize) {
 /// The first frame of a band's decay proper: the first whose energy comes within
 /// [`DECAY_START_LEVEL_DB`] of the band's peak (0 for a band without energy).
 pub fn decay_start_frame(energies: &[f64]) -> usize {
-    let peak = energies.iter().cloned().fold(0.0, f64::max);
+    let peak = super::peak_or_zero(energies);
     let level = peak * 10f64.powf(-DECAY_START_LEVEL_DB / 10.0);
     if peak > 0.0 {
         energies.iter().position(|&e| e >= level).unwrap_or(0)
