@@ -272,6 +272,7 @@ impl OctaveBankFrontEnd {
         let n_frames = band_frames.iter().copied().max().unwrap_or(0);
         let used = n_frames * self.hop;
         let nb = self.bands.len();
+        let energy_scale = self.energy_scale();
         self.clear_filters();
         super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
             with_frame_sums(|sums| {
@@ -288,10 +289,16 @@ impl OctaveBankFrontEnd {
                         .filter(chunk, true, Some((self.hop, self.hop)), sums);
                     for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
                         let k = k_end - 1 - j;
-                        self.take_frame(frame);
-                        for b in 0..nb {
-                            frames[b * n_frames + k] = self.energy[b];
-                            freqs[b * n_frames + k] = self.freq[b];
+                        // Straight into the band-major arrays (frame k of every band).
+                        for (b, (sm, (&alpha, sum))) in self
+                            .smooth
+                            .iter_mut()
+                            .zip(self.smooth_factor.iter().zip(frame))
+                            .enumerate()
+                        {
+                            let (e, c) = frame_values(sm, alpha, sum, energy_scale);
+                            frames[b * n_frames + k] = e;
+                            freqs[b * n_frames + k] = c;
                         }
                     }
                     k_end = k_start;
@@ -310,11 +317,8 @@ impl OctaveBankFrontEnd {
     /// (cos 2πf/fs, NaN where unknown; [`OctaveBankFrontEnd::cosines_to_hz`] converts them,
     /// many frames at once where it can).
     fn take_frame(&mut self, sums: &[FrameSums]) {
-        let hop = self.hop as f64;
-        // Dividing by a power of two is multiplying by its inverse, bit for bit (both round
-        // the same exact quotient); a division per band and frame was half this step's time.
-        let (exact_inverse, inverse) = (self.hop.is_power_of_two(), 1.0 / hop);
-        for ((((e, f), sm), alpha), [energy, cross, power]) in self
+        let energy_scale = self.energy_scale();
+        for ((((e, f), sm), &alpha), sum) in self
             .energy
             .iter_mut()
             .zip(&mut self.freq)
@@ -322,18 +326,16 @@ impl OctaveBankFrontEnd {
             .zip(&self.smooth_factor)
             .zip(sums)
         {
-            sm[0] = alpha * sm[0] + cross;
-            sm[1] = alpha * sm[1] + power;
-            *f = if sm[1] > 0.0 {
-                (0.5 * sm[0] / sm[1]).clamp(-1.0, 1.0)
-            } else {
-                f64::NAN
-            };
-            *e = if exact_inverse {
-                energy * inverse
-            } else {
-                energy / hop
-            };
+            (*e, *f) = frame_values(sm, alpha, sum, energy_scale);
+        }
+    }
+
+    /// How a frame's Σy² becomes its mean energy per sample (see [`EnergyScale`]).
+    fn energy_scale(&self) -> EnergyScale {
+        if self.hop.is_power_of_two() {
+            EnergyScale::Times(1.0 / self.hop as f64)
+        } else {
+            EnergyScale::Over(self.hop as f64)
         }
     }
 
@@ -350,6 +352,40 @@ impl OctaveBankFrontEnd {
             active: None,
         });
     }
+}
+
+/// A frame's Σy² over its `hop` samples: dividing by a power of two is multiplying by its
+/// inverse, bit for bit (both round the same exact quotient), and a division per band and frame
+/// was half the frames' conversion.
+#[derive(Clone, Copy)]
+enum EnergyScale {
+    /// Multiply by this inverse of a power-of-two hop.
+    Times(f64),
+    /// Divide by the hop.
+    Over(f64),
+}
+
+/// One band's frame from its sums: the mean energy per sample, and the cosine of its frequency
+/// (cos 2πf/fs from the smoothed sums `sm`, updated here; NaN where unknown).
+#[inline(always)]
+fn frame_values(
+    sm: &mut [f64; 2],
+    alpha: f64,
+    &[energy, cross, power]: &FrameSums,
+    scale: EnergyScale,
+) -> (f64, f64) {
+    sm[0] = alpha * sm[0] + cross;
+    sm[1] = alpha * sm[1] + power;
+    let cosine = if sm[1] > 0.0 {
+        (0.5 * sm[0] / sm[1]).clamp(-1.0, 1.0)
+    } else {
+        f64::NAN
+    };
+    let mean = match scale {
+        EnergyScale::Times(inverse) => energy * inverse,
+        EnergyScale::Over(hop) => energy / hop,
+    };
+    (mean, cosine)
 }
 
 impl FrontEnd for OctaveBankFrontEnd {
