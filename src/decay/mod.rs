@@ -17,6 +17,7 @@ pub mod range;
 pub mod regression;
 pub mod restarts;
 pub mod schroeder;
+mod side_by_side;
 
 pub use estimate::{DecayEstimate, Flag};
 pub use frequency::FrequencyCoding;
@@ -43,8 +44,37 @@ pub trait DecayEstimator: Send {
         }
     }
 
+    /// Several bands' [`DecayEstimator::push_frames`] at once: `energy[j]` and `frequency[j]`
+    /// to `estimators[j]`. The same as one call per band; an estimator may interleave the
+    /// bands' work (their running sums are chains that a band alone waits on).
+    fn push_frames_each(
+        estimators: &mut [Self],
+        energy: &[&[f64]],
+        frequency: &[&[f64]],
+        coding: FrequencyCoding,
+    ) where
+        Self: Sized,
+    {
+        for ((est, e), f) in estimators.iter_mut().zip(energy).zip(frequency) {
+            est.push_frames(e, f, coding);
+        }
+    }
+
     /// The estimate from the frames seen so far (the Schroeder curve truncated at the last frame).
     fn provisional(&self) -> DecayEstimate;
+
+    /// [`DecayEstimator::provisional`] of the estimators where `wanted`, `None` elsewhere; an
+    /// estimator may interleave the bands' work, as in [`DecayEstimator::push_frames_each`].
+    fn provisional_each(estimators: &[Self], wanted: &[bool]) -> Vec<Option<DecayEstimate>>
+    where
+        Self: Sized,
+    {
+        estimators
+            .iter()
+            .zip(wanted)
+            .map(|(e, &w)| w.then(|| e.provisional()))
+            .collect()
+    }
 
     /// Number of frames consumed so far.
     fn frames(&self) -> usize;

@@ -111,6 +111,37 @@ impl OnlineSchroeder {
         self.coding.decode(&self.frequencies)
     }
 
+    /// Appends frames' kept energies (see `kept_energy`) and their frequencies, without the
+    /// running sum; returns the index of the first frame appended.
+    fn keep_frames(&mut self, energy: &[f64], frequency: &[f64], coding: FrequencyCoding) -> usize {
+        // Written in place: a push per frame kept the length in memory (a buffered bank hands
+        // over 5000 frames per band and decay at 2 ms frames).
+        let n = energy.len().min(frequency.len());
+        let start = self.energies.len();
+        self.energies.resize(start + n, 0.0);
+        for (kept, &x) in self.energies[start..].iter_mut().zip(energy) {
+            *kept = kept_energy(x);
+        }
+        self.store_frequencies(&frequency[..n], coding);
+        start
+    }
+
+    /// Appends frames' frequencies: kept as coded (an estimate decodes only the frames it reads)
+    /// unless the frames held are coded otherwise, then all in Hz.
+    fn store_frequencies(&mut self, frequency: &[f64], coding: FrequencyCoding) {
+        if self.frequencies.is_empty() {
+            self.coding = coding;
+        }
+        if coding == self.coding {
+            self.frequencies.extend_from_slice(frequency);
+        } else {
+            self.decode_frequencies();
+            let from = self.frequencies.len();
+            self.frequencies.extend_from_slice(frequency);
+            coding.decode_in_place(&mut self.frequencies[from..]);
+        }
+    }
+
     /// Turns the frequencies held into Hz (before frames of another coding join them).
     fn decode_frequencies(&mut self) {
         self.coding.decode_in_place(&mut self.frequencies);
@@ -130,8 +161,12 @@ impl OnlineSchroeder {
 
     /// The estimate from the frames seen so far, from the band's own start on.
     pub fn estimate(&self) -> DecayEstimate {
+        self.estimate_from_edc(&self.edc())
+    }
+
+    /// [`OnlineSchroeder::estimate`] with the curve given ([`OnlineSchroeder::edc`]'s).
+    fn estimate_from_edc(&self, edc: &[f64]) -> DecayEstimate {
         let start = self.start_frame();
-        let edc = self.edc();
         estimate_from_coded_curve(
             &edc[start..],
             &self.energies[start..],
@@ -166,31 +201,55 @@ impl DecayEstimator for OnlineSchroeder {
     }
 
     fn push_frames(&mut self, energy: &[f64], frequency: &[f64], coding: FrequencyCoding) {
-        // Written in place with the running sum in a local: a push per frame kept the sum and
-        // the length in memory (a buffered bank hands over 5000 frames per band and decay at
-        // 2 ms frames).
-        let n = energy.len().min(frequency.len());
-        let start = self.energies.len();
-        self.energies.resize(start + n, 0.0);
+        let start = self.keep_frames(energy, frequency, coding);
         let mut running = self.running;
-        for (kept, &x) in self.energies[start..].iter_mut().zip(energy) {
-            *kept = kept_energy(x);
-            running.add(*kept);
-        }
+        self.energies[start..].iter().for_each(|&e| running.add(e));
         self.running = running;
-        // Kept as coded (an estimate decodes only the frames it reads) unless the frames held
-        // are coded otherwise: then all in Hz.
-        if self.frequencies.is_empty() {
-            self.coding = coding;
+    }
+
+    fn push_frames_each(
+        estimators: &mut [Self],
+        energy: &[&[f64]],
+        frequency: &[&[f64]],
+        coding: FrequencyCoding,
+    ) {
+        let starts: Vec<usize> = estimators
+            .iter_mut()
+            .zip(energy.iter().zip(frequency))
+            .map(|(est, (e, f))| est.keep_frames(e, f, coding))
+            .collect();
+        // The running sums four bands at a time.
+        let mut sums: Vec<CompensatedSum> = estimators.iter().map(|e| e.running).collect();
+        let kept: Vec<&[f64]> = estimators
+            .iter()
+            .zip(&starts)
+            .map(|(e, &s)| &e.energies[s..])
+            .collect();
+        super::side_by_side::add_each(&mut sums, &kept);
+        for (est, sum) in estimators.iter_mut().zip(sums) {
+            est.running = sum;
         }
-        if coding == self.coding {
-            self.frequencies.extend_from_slice(&frequency[..n]);
-        } else {
-            self.decode_frequencies();
-            let from = self.frequencies.len();
-            self.frequencies.extend_from_slice(&frequency[..n]);
-            coding.decode_in_place(&mut self.frequencies[from..]);
-        }
+    }
+
+    fn provisional_each(estimators: &[Self], wanted: &[bool]) -> Vec<Option<DecayEstimate>> {
+        // The curves four bands at a time, then each band's estimate from its own.
+        let chosen: Vec<&OnlineSchroeder> = estimators
+            .iter()
+            .zip(wanted)
+            .filter_map(|(e, &w)| w.then_some(e))
+            .collect();
+        let energies: Vec<&[f64]> = chosen.iter().map(|e| e.energies.as_slice()).collect();
+        let mut curves = super::side_by_side::backward_integrals(&energies).into_iter();
+        estimators
+            .iter()
+            .zip(wanted)
+            .map(|(e, &w)| {
+                w.then(|| {
+                    let edc = curves.next().expect("a curve per wanted band");
+                    e.estimate_from_edc(&edc)
+                })
+            })
+            .collect()
     }
 
     fn provisional(&self) -> DecayEstimate {
@@ -320,6 +379,56 @@ mod tests {
             s.add(1e-17);
         }
         assert!((s.minus(&CompensatedSum { hi: 1.0, lo: 0.0 }) - 1e-16).abs() < 1e-30);
+    }
+
+    #[test]
+    fn bands_side_by_side_are_each_band_alone() {
+        // Bands of different lengths (one empty), pushed and estimated together or alone.
+        let fs = 4096.0;
+        let coding = FrequencyCoding::Cosine { sample_rate_hz: fs };
+        let bands: Vec<(Vec<f64>, Vec<f64>)> = (0..6)
+            .map(|b| {
+                let n = [700, 650, 0, 1200, 90, 700][b];
+                let rate = 0.02 * (b + 1) as f64;
+                let e = (0..n)
+                    .map(|k| (-(k as f64) * rate).exp() + 1e-7 * ((k * 7 + b) % 5) as f64)
+                    .collect();
+                let c = (0..n)
+                    .map(|k| (0.3 + 0.001 * (k % 9) as f64).cos())
+                    .collect();
+                (e, c)
+            })
+            .collect();
+        let settings = EstimateSettings::default();
+        let fresh: Vec<OnlineSchroeder> = (0..6)
+            .map(|b| OnlineSchroeder::new(0.002, 125.0 * (1 << b) as f64, settings))
+            .collect();
+        let (mut together, mut alone) = (fresh.clone(), fresh);
+        // Some frames already held.
+        for est in together.iter_mut().chain(alone.iter_mut()) {
+            est.push_frame(0.25, 90.0);
+        }
+        let energy: Vec<&[f64]> = bands.iter().map(|b| b.0.as_slice()).collect();
+        let cosines: Vec<&[f64]> = bands.iter().map(|b| b.1.as_slice()).collect();
+        OnlineSchroeder::push_frames_each(&mut together, &energy, &cosines, coding);
+        for (est, (e, c)) in alone.iter_mut().zip(&bands) {
+            est.push_frames(e, c, coding);
+        }
+        let wanted = [true, true, true, false, true, true];
+        let each = OnlineSchroeder::provisional_each(&together, &wanted);
+        for (b, (t, a)) in together.iter().zip(&alone).enumerate() {
+            assert_eq!(
+                t.total_energy().to_bits(),
+                a.total_energy().to_bits(),
+                "band {b}"
+            );
+            assert_eq!(t.energies(), a.energies(), "band {b}");
+            match &each[b] {
+                Some(est) => assert_eq!(format!("{est:?}"), format!("{:?}", a.provisional())),
+                None => assert!(!wanted[b]),
+            }
+        }
+        assert!(each[0].as_ref().is_some_and(|e| e.t60_s.is_some()));
     }
 
     #[test]

@@ -293,11 +293,15 @@ impl<E: DecayEstimator> BandTrackers<E> {
                 *peak = energy[at..at + count].iter().fold(*peak, |p, &e| p.max(e));
             }
         }
-        for (b, est) in self.estimators.iter_mut().enumerate() {
-            let count = taken.min(band_frames[b]);
-            let at = b * n_frames;
-            est.push_frames(&energy[at..at + count], &frequency[at..at + count], coding);
-        }
+        let (energies, frequencies): (Vec<&[f64]>, Vec<&[f64]>) = band_frames
+            .iter()
+            .enumerate()
+            .map(|(b, &ends)| {
+                let (at, count) = (b * n_frames, taken.min(ends));
+                (&energy[at..at + count], &frequency[at..at + count])
+            })
+            .unzip();
+        E::push_frames_each(&mut self.estimators, &energies, &frequencies, coding);
     }
 
     pub(super) fn push(&mut self, frame: Frame<'_>) {

@@ -279,17 +279,11 @@ impl ChannelAnalyzer {
             &self.band_in_range,
         );
         let mut estimates = timed(self.clock.as_mut().map(|c| &mut c.estimator_s), || {
-            let mut estimates: Vec<DecayEstimate> = estimators
-                .iter()
-                .zip(in_range)
-                .map(|(e, &ok)| {
-                    if ok {
-                        e.provisional()
-                    } else {
-                        DecayEstimate::failed(Flag::BandOutOfRange)
-                    }
-                })
-                .collect();
+            let mut estimates: Vec<DecayEstimate> =
+                DecayEstimator::provisional_each(estimators, in_range)
+                    .into_iter()
+                    .map(|e| e.unwrap_or_else(|| DecayEstimate::failed(Flag::BandOutOfRange)))
+                    .collect();
             judge_bands(front_end, estimators, &mut estimates);
             estimates
         });
