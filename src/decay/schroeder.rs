@@ -114,14 +114,13 @@ impl OnlineSchroeder {
     /// Appends frames' kept energies (see `kept_energy`) and their frequencies, without the
     /// running sum; returns the index of the first frame appended.
     fn keep_frames(&mut self, energy: &[f64], frequency: &[f64], coding: FrequencyCoding) -> usize {
-        // Written in place: a push per frame kept the length in memory (a buffered bank hands
-        // over 5000 frames per band and decay at 2 ms frames).
+        // From an iterator of known length: a push per frame kept the length in memory, and
+        // zeroing the room first wrote it twice (a buffered bank hands over 5000 frames per
+        // band and decay at 2 ms frames).
         let n = energy.len().min(frequency.len());
         let start = self.energies.len();
-        self.energies.resize(start + n, 0.0);
-        for (kept, &x) in self.energies[start..].iter_mut().zip(energy) {
-            *kept = kept_energy(x);
-        }
+        self.energies
+            .extend(energy[..n].iter().map(|&x| kept_energy(x)));
         self.store_frequencies(&frequency[..n], coding);
         start
     }
