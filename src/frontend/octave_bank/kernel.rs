@@ -47,9 +47,30 @@ struct Group {
     sums: [L4; 3],
 }
 
+/// A sample the kernel reads: f64, or an f32 (a decay held in single precision) widened
+/// exactly as it is read, instead of in a pass of its own over a widened copy.
+pub(crate) trait Sample: Copy {
+    /// The sample's value.
+    fn value(self) -> f64;
+}
+
+impl Sample for f64 {
+    #[inline(always)]
+    fn value(self) -> f64 {
+        self
+    }
+}
+
+impl Sample for f32 {
+    #[inline(always)]
+    fn value(self) -> f64 {
+        f64::from(self)
+    }
+}
+
 /// What one call filters and where its frame sums go.
-struct Span<'a> {
-    xs: &'a [f64],
+struct Span<'a, S> {
+    xs: &'a [S],
     reversed: bool,
     /// Samples (in processing order) until the first frame ends, then `hop` per frame;
     /// `usize::MAX` when nothing accumulates.
@@ -104,7 +125,7 @@ impl Group {
     #[inline(always)]
     fn run<const NS: usize, const ACC: bool, const FMA: bool>(
         &mut self,
-        span: &Span<'_>,
+        span: &Span<'_, impl Sample>,
         lane0: usize,
         out: &mut [FrameSums],
     ) {
@@ -115,11 +136,11 @@ impl Group {
             let end = boundary.min(n);
             if span.reversed {
                 for &x in span.xs[n - end..n - p].iter().rev() {
-                    g.step::<NS, ACC, FMA>(x);
+                    g.step::<NS, ACC, FMA>(x.value());
                 }
             } else {
                 for &x in &span.xs[p..end] {
-                    g.step::<NS, ACC, FMA>(x);
+                    g.step::<NS, ACC, FMA>(x.value());
                 }
             }
             if ACC && end == boundary {
@@ -200,9 +221,9 @@ impl Kernel {
     /// samples (in processing order, 1 ≤ first ≤ hop) and then every `hop` samples, the frame
     /// sums of every band are appended to `out` (frame by frame, bands in order) and cleared.
     /// A partial frame's sums carry over to the next call. With `None` the filters only run.
-    pub(super) fn filter(
+    pub(super) fn filter<S: Sample>(
         &mut self,
-        xs: &[f64],
+        xs: &[S],
         reversed: bool,
         frames: Option<(usize, usize)>,
         out: &mut Vec<FrameSums>,
@@ -229,18 +250,28 @@ impl Kernel {
             // SAFETY: `Isa::detect` found AVX2 (or AVX-512F) and FMA on this CPU.
             Isa::Avx2Fma | Isa::Avx512 => unsafe { self.filter_avx2(&span, acc, out) },
             // aarch64 always has fused multiply-add; x86-64 without the feature would call libm.
-            Isa::Generic => self.dispatch::<{ cfg!(target_arch = "aarch64") }>(&span, acc, out),
+            Isa::Generic => self.dispatch::<{ cfg!(target_arch = "aarch64") }, S>(&span, acc, out),
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn filter_avx2(&mut self, span: &Span<'_>, acc: bool, out: &mut [FrameSums]) {
-        self.dispatch::<true>(span, acc, out);
+    unsafe fn filter_avx2<S: Sample>(
+        &mut self,
+        span: &Span<'_, S>,
+        acc: bool,
+        out: &mut [FrameSums],
+    ) {
+        self.dispatch::<true, S>(span, acc, out);
     }
 
     #[inline(always)]
-    fn dispatch<const FMA: bool>(&mut self, span: &Span<'_>, acc: bool, out: &mut [FrameSums]) {
+    fn dispatch<const FMA: bool, S: Sample>(
+        &mut self,
+        span: &Span<'_, S>,
+        acc: bool,
+        out: &mut [FrameSums],
+    ) {
         match (self.padded_sections, acc) {
             (1, true) => self.groups_run::<1, true, FMA>(span, out),
             (1, false) => self.groups_run::<1, false, FMA>(span, out),
@@ -262,7 +293,7 @@ impl Kernel {
     #[inline(always)]
     fn groups_run<const NS: usize, const ACC: bool, const FMA: bool>(
         &mut self,
-        span: &Span<'_>,
+        span: &Span<'_, impl Sample>,
         out: &mut [FrameSums],
     ) {
         for (i, g) in self.groups.iter_mut().enumerate() {
@@ -387,5 +418,32 @@ mod tests {
         b.filter(&rev[499..], false, Some((10, 10)), &mut out_b);
         assert_eq!(out_a.len(), 50 * 5);
         assert_eq!(out_a, out_b);
+    }
+
+    /// Single-precision samples are read as their exact f64 values: the same sums, bit for
+    /// bit, as from the samples widened first, on every instruction set, forwards and back.
+    #[test]
+    fn single_precision_samples_are_their_widened_values() {
+        let sections = bank(6, 3, 4096.0);
+        let xs32: Vec<f32> = (0..777)
+            .map(|n| ((n * 7919) % 211) as f32 / 211.0 - 0.5)
+            .collect();
+        let xs64: Vec<f64> = xs32.iter().map(|&x| f64::from(x)).collect();
+        for isa in Isa::available() {
+            for reversed in [false, true] {
+                let (mut a, mut b) = (
+                    Kernel::with_isa(&sections, isa),
+                    Kernel::with_isa(&sections, isa),
+                );
+                let (mut out_a, mut out_b) = (Vec::new(), Vec::new());
+                a.filter(&xs32, reversed, Some((8, 8)), &mut out_a);
+                b.filter(&xs64, reversed, Some((8, 8)), &mut out_b);
+                let bits = |v: &[FrameSums]| -> Vec<u64> {
+                    v.iter().flatten().map(|x| x.to_bits()).collect()
+                };
+                assert!(!out_a.is_empty());
+                assert_eq!(bits(&out_a), bits(&out_b), "{isa:?} reversed {reversed}");
+            }
+        }
     }
 }

@@ -20,9 +20,9 @@ mod kernel;
 use biquad::Coefficients;
 use rustfft::num_complex::Complex;
 
-use kernel::{FrameSums, Kernel};
+use kernel::{FrameSums, Kernel, Sample};
 
-use super::buffered::{DecayBuffer, FilterDirection};
+use super::buffered::{DecayBuffer, DecaySamples, FilterDirection};
 use super::simd::Isa;
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
 use crate::decay::FrequencyCoding;
@@ -262,7 +262,7 @@ impl OctaveBankFrontEnd {
     }
 
     /// A whole decay's frames from its samples, filtered from the last to the first, to `sink`.
-    fn filter_reversed(&mut self, buffer: &[f64], sink: &mut dyn FrameSink) {
+    fn filter_reversed<S: Sample>(&mut self, buffer: &[S], sink: &mut dyn FrameSink) {
         // Each band keeps the frames before its own transient zone; the widest band the most.
         let band_frames: Vec<usize> = self
             .band_cut_samples
@@ -433,7 +433,11 @@ impl FrontEnd for OctaveBankFrontEnd {
             return;
         }
         let held = self.buffer.take();
-        held.with_f64(|buffer| self.filter_reversed(buffer, sink));
+        // Read as held: an f32 decay is widened sample by sample inside the kernel.
+        match &held {
+            DecaySamples::Single(v) => self.filter_reversed(v, sink),
+            DecaySamples::Double(v) => self.filter_reversed(v, sink),
+        }
         self.buffer.give_back(held);
     }
 
