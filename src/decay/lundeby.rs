@@ -355,7 +355,7 @@ mod tests {
     #[test]
     fn block_means_are_sums_over_the_block_length_bit_for_bit() {
         let data: Vec<f64> = (0..1000)
-            .map(|k| (k as f64 * 0.37).sin().abs() * 10f64.powi((k % 40) as i32 - 320))
+            .map(|k| (k as f64 * 0.37).sin().abs() * 10f64.powi(k % 40 - 320))
             .collect();
         for block in [1, 2, 3, 4, 5, 8, 16, 17, 64, 1000] {
             let naive: Vec<u64> = data

@@ -27,17 +27,8 @@ pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
     if peak <= 0.0 {
         return None;
     }
-    let level = peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0);
-    let jump = 10f64.powf(RESTART_JUMP_DB / 10.0);
-    let is_restart = |k: usize| {
-        let e = energies[k];
-        e >= level
-            && e > jump
-                * energies[k - 2 * g..=k - g]
-                    .iter()
-                    .cloned()
-                    .fold(0.0, f64::max)
-    };
+    let level = restart_level(peak);
+    let is_restart = |k: usize| restarts_at(energies, k, g, level);
     // The window's maximum only where the level test passes (the early decay); the tail is
     // skipped a chunk at a time.
     let mut k = 2 * g;
@@ -56,28 +47,37 @@ pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
     None
 }
 
+/// The lowest energy a restart may have: [`RESTART_LEVEL_DB`] below the band's `peak`.
+fn restart_level(peak: f64) -> f64 {
+    peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0)
+}
+
+/// Whether frame k (≥ 2g) restarts the decay: at least `level`, and [`RESTART_JUMP_DB`] above
+/// every frame from k − 2g to k − g.
+fn restarts_at(energies: &[f64], k: usize, g: usize, level: f64) -> bool {
+    let e = energies[k];
+    let jump = 10f64.powf(RESTART_JUMP_DB / 10.0);
+    e >= level
+        && e > jump
+            * energies[k - 2 * g..=k - g]
+                .iter()
+                .cloned()
+                .fold(0.0, f64::max)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The test as first written: one frame at a time, the peak in one fold.
+    /// The scan as first written: every frame in turn, the peak in one fold.
     fn first_restart_naive(energies: &[f64], rise_frames: usize) -> Option<usize> {
         let g = rise_frames.max(1);
         let peak = energies.iter().cloned().fold(0.0, f64::max);
         if peak <= 0.0 {
             return None;
         }
-        let level = peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0);
-        let jump = 10f64.powf(RESTART_JUMP_DB / 10.0);
-        (2 * g..energies.len()).find(|&k| {
-            let e = energies[k];
-            e >= level
-                && e > jump
-                    * energies[k - 2 * g..=k - g]
-                        .iter()
-                        .cloned()
-                        .fold(0.0, f64::max)
-        })
+        let level = restart_level(peak);
+        (2 * g..energies.len()).find(|&k| restarts_at(energies, k, g, level))
     }
 
     #[test]
