@@ -78,13 +78,8 @@ fn db(x: f64) -> f64 {
 fn smooth(data: &[f64], block: usize) -> Vec<f64> {
     let n_blocks = data.len() / block;
     let mut means = block_sums(&data[..n_blocks * block], block);
-    if block.is_power_of_two() {
-        // The same bits as the division (both round the same exact quotient), without one.
-        let inverse = 1.0 / block as f64;
-        means.iter_mut().for_each(|m| *m *= inverse);
-    } else {
-        means.iter_mut().for_each(|m| *m /= block as f64);
-    }
+    let divisor = super::CountDivisor::new(block);
+    means.iter_mut().for_each(|m| *m = divisor.divide(*m));
     means
 }
 

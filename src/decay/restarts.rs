@@ -22,24 +22,18 @@ const SCAN_CHUNK: usize = 16;
 /// The first frame of `energies` that restarts the decay, or `None`. `rise_frames` (≥ 1) is
 /// how many frames a new hit takes to enter the front end's window fully.
 pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
-    let g = rise_frames.max(1);
-    let peak = super::peak_or_zero(energies);
-    if peak <= 0.0 {
-        return None;
-    }
-    let level = restart_level(peak);
-    let is_restart = |k: usize| restarts_at(energies, k, g, level);
+    let test = RestartTest::new(energies, rise_frames, super::peak_or_zero(energies))?;
     // The window's maximum only where the level test passes (the early decay); the tail is
     // skipped a chunk at a time.
-    let mut k = 2 * g;
+    let mut k = 2 * test.g;
     while k < energies.len() {
         if let Some(chunk) = energies.get(k..k + SCAN_CHUNK) {
-            if !chunk.iter().fold(false, |any, &e| any | (e >= level)) {
+            if !chunk.iter().fold(false, |any, &e| any | (e >= test.level)) {
                 k += SCAN_CHUNK;
                 continue;
             }
         }
-        if is_restart(k) {
+        if test.at(k) {
             return Some(k);
         }
         k += 1;
@@ -47,22 +41,39 @@ pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
     None
 }
 
-/// The lowest energy a restart may have: [`RESTART_LEVEL_DB`] below the band's `peak`.
-fn restart_level(peak: f64) -> f64 {
-    peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0)
+/// The restart test of one band's frames, its constants computed once.
+struct RestartTest<'a> {
+    energies: &'a [f64],
+    /// Frames a new hit takes to enter the window (≥ 1).
+    g: usize,
+    /// The lowest energy a restart may have: [`RESTART_LEVEL_DB`] below the band's peak.
+    level: f64,
+    /// The rise a restart makes: [`RESTART_JUMP_DB`] as an energy ratio.
+    jump: f64,
 }
 
-/// Whether frame k (≥ 2g) restarts the decay: at least `level`, and [`RESTART_JUMP_DB`] above
-/// every frame from k − 2g to k − g.
-fn restarts_at(energies: &[f64], k: usize, g: usize, level: f64) -> bool {
-    let e = energies[k];
-    let jump = 10f64.powf(RESTART_JUMP_DB / 10.0);
-    e >= level
-        && e > jump
-            * energies[k - 2 * g..=k - g]
-                .iter()
-                .cloned()
-                .fold(0.0, f64::max)
+impl<'a> RestartTest<'a> {
+    /// The test of `energies` with `rise_frames`; `None` for a band without energy.
+    fn new(energies: &'a [f64], rise_frames: usize, peak: f64) -> Option<Self> {
+        (peak > 0.0).then(|| RestartTest {
+            energies,
+            g: rise_frames.max(1),
+            level: peak * 10f64.powf(-RESTART_LEVEL_DB / 10.0),
+            jump: 10f64.powf(RESTART_JUMP_DB / 10.0),
+        })
+    }
+
+    /// Whether frame k (≥ 2g) restarts the decay: at least `level`, and `jump` above every
+    /// frame from k − 2g to k − g.
+    fn at(&self, k: usize) -> bool {
+        let (e, g) = (self.energies[k], self.g);
+        e >= self.level
+            && e > self.jump
+                * self.energies[k - 2 * g..=k - g]
+                    .iter()
+                    .cloned()
+                    .fold(0.0, f64::max)
+    }
 }
 
 #[cfg(test)]
@@ -71,13 +82,9 @@ mod tests {
 
     /// The scan as first written: every frame in turn, the peak in one fold.
     fn first_restart_naive(energies: &[f64], rise_frames: usize) -> Option<usize> {
-        let g = rise_frames.max(1);
         let peak = energies.iter().cloned().fold(0.0, f64::max);
-        if peak <= 0.0 {
-            return None;
-        }
-        let level = restart_level(peak);
-        (2 * g..energies.len()).find(|&k| restarts_at(energies, k, g, level))
+        let test = RestartTest::new(energies, rise_frames, peak)?;
+        (2 * test.g..energies.len()).find(|&k| test.at(k))
     }
 
     #[test]

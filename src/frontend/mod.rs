@@ -348,9 +348,8 @@ pub(crate) fn with_thread_scratch<T: Default + 'static, R>(
 }
 
 /// Emits the frames of a buffering bank, band by band ([`FrameSink::frames`]): band b holds
-/// frames `0 .. band_frames[b]` (its own
-/// transient cut) and is marked inactive after them. Each band's own start (its energy within
-/// 20 dB of its peak) is found by the estimator
+/// frames `0 .. band_frames[b]` (its own transient cut) and is marked inactive after them. Each
+/// band's own start (its energy within 20 dB of its peak) is found by the estimator
 /// ([`crate::decay::schroeder::DECAY_START_LEVEL_DB`]), the same for every front end.
 pub(crate) fn emit_band_frames(
     sink: &mut dyn FrameSink,

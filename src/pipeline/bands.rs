@@ -172,8 +172,8 @@ impl<E: DecayEstimator> BandTrackers<E> {
     }
 
     /// Appends `frames` entries to one band's running sum `c` (which holds its leading 0): the
-    /// energies of `active`, then the last frame repeated (as [`BandTrackers::add_to_sums`]
-    /// does for a band no longer active).
+    /// energies of `active`, then the last frame repeated (a band no longer active leaves the
+    /// floor test neutral).
     fn extend_sum(c: &mut Vec<f64>, active: &[f64], frames: usize) {
         let mut last = c[c.len() - 1];
         let mut before = c.len().checked_sub(2).map(|j| c[j]);
@@ -196,13 +196,8 @@ impl<E: DecayEstimator> BandTrackers<E> {
             if c.is_empty() {
                 Self::restart_sum(c);
             }
-            let last = c[c.len() - 1];
-            let e = if active(b) {
-                e
-            } else {
-                c.len().checked_sub(2).map_or(0.0, |i| last - c[i])
-            };
-            c.push(last + e);
+            let frame = [e];
+            Self::extend_sum(c, if active(b) { &frame } else { &[] }, 1);
         }
     }
 

@@ -25,7 +25,7 @@ use kernel::{FrameSums, Kernel, Sample};
 use super::buffered::{DecayBuffer, DecaySamples, FilterDirection};
 use super::simd::Isa;
 use super::{Band, Frame, FrameSink, FrontEnd, Resolution};
-use crate::decay::FrequencyCoding;
+use crate::decay::{CountDivisor, FrequencyCoding};
 use crate::error::{Error, Result};
 
 /// Settings of the octave filter bank.
@@ -330,13 +330,9 @@ impl OctaveBankFrontEnd {
         }
     }
 
-    /// How a frame's Σy² becomes its mean energy per sample (see [`EnergyScale`]).
-    fn energy_scale(&self) -> EnergyScale {
-        if self.hop.is_power_of_two() {
-            EnergyScale::Times(1.0 / self.hop as f64)
-        } else {
-            EnergyScale::Over(self.hop as f64)
-        }
+    /// How a frame's Σy² becomes its mean energy per sample: over the hop.
+    fn energy_scale(&self) -> CountDivisor {
+        CountDivisor::new(self.hop)
     }
 
     /// Frequencies in Hz from their cosines ([`OctaveBankFrontEnd::take_frame`]), in place.
@@ -354,17 +350,6 @@ impl OctaveBankFrontEnd {
     }
 }
 
-/// A frame's Σy² over its `hop` samples: dividing by a power of two is multiplying by its
-/// inverse, bit for bit (both round the same exact quotient), and a division per band and frame
-/// was half the frames' conversion.
-#[derive(Clone, Copy)]
-enum EnergyScale {
-    /// Multiply by this inverse of a power-of-two hop.
-    Times(f64),
-    /// Divide by the hop.
-    Over(f64),
-}
-
 /// One band's frame from its sums: the mean energy per sample, and the cosine of its frequency
 /// (cos 2πf/fs from the smoothed sums `sm`, updated here; NaN where unknown).
 #[inline(always)]
@@ -372,7 +357,7 @@ fn frame_values(
     sm: &mut [f64; 2],
     alpha: f64,
     &[energy, cross, power]: &FrameSums,
-    scale: EnergyScale,
+    scale: CountDivisor,
 ) -> (f64, f64) {
     sm[0] = alpha * sm[0] + cross;
     sm[1] = alpha * sm[1] + power;
@@ -381,10 +366,7 @@ fn frame_values(
     } else {
         f64::NAN
     };
-    let mean = match scale {
-        EnergyScale::Times(inverse) => energy * inverse,
-        EnergyScale::Over(hop) => energy / hop,
-    };
+    let mean = scale.divide(energy);
     (mean, cosine)
 }
 
