@@ -254,8 +254,8 @@ fn attachment_vectors(
     let n = sys.n_free;
     let k = reference_stiffness(sys)?;
     let sigma = (2.0 * std::f64::consts::PI * ATTACHMENT_SHIFT_HZ).powi(2);
-    let llt = sparse_combination(n, &[(1.0, &k), (sigma, &sys.mass)], "K + σM")?
-        .sp_cholesky(Side::Lower)
+    let shifted = sparse_combination(n, &[(1.0, &k), (sigma, &sys.mass)], "K + σM")?;
+    let llt = crate::sim::reuse::cholesky(&shifted)
         .map_err(|e| SimError::Eigen(format!("released plate's stiffness: {e:?}")))?;
     let mut basis = modes.to_owned();
     let mut m_basis = spmm(&sys.mass, basis.as_ref());

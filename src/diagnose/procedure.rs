@@ -276,6 +276,8 @@ pub fn diagnose_with_progress(
     settings: &DiagnoseSettings,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
+    // Every candidate model shares the mesh: keep its factorisations for the run.
+    let _factors = crate::sim::reuse::scope();
     progress("identifying the recordings' modes");
     let modal = ModalSettings {
         exponential_window_tau_s: settings.exponential_window_tau_s,

@@ -15,12 +15,14 @@
 
 use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 
+use super::combination::sparse_combination;
 use super::element::{
     elasticity, hex8_incompatible_internal, hex8_incompatible_stiffness, hex8_mass, Mat33,
 };
 use super::error::SimError;
 use super::mesh::Mesh;
 use super::model::{Edge, Model};
+use super::scatter_plan::ScatterPlan;
 use super::system::{FeSystem, SensorWeights, StiffnessTerm};
 
 /// Map from global dof to free dof (`None` when constrained).
@@ -129,6 +131,15 @@ pub fn sparse_from_triplets(
     Ok(SparseColMat::new(symbolic, values))
 }
 
+/// The name of region `r`'s stiffness term: "plate", then "patch p".
+fn region_name(r: usize) -> String {
+    if r == 0 {
+        "plate".to_string()
+    } else {
+        format!("patch {}", r - 1)
+    }
+}
+
 /// Scatters an element matrix over element dofs `dofs` (`None`: constrained) into triplets.
 fn scatter<const D: usize>(
     out: &mut Vec<Triplet<usize, usize, f64>>,
@@ -209,6 +220,24 @@ pub fn assemble(model: &Model) -> Result<FeSystem, SimError> {
 
 /// Assembles the model with a chosen [`Formulation`] of the incompatible modes.
 pub fn assemble_with(model: &Model, formulation: Formulation) -> Result<FeSystem, SimError> {
+    assemble_planned(model, formulation, super::reuse::active())
+}
+
+/// [`assemble_with`] through triplets whatever the scope: the scatter plan's oracle.
+#[cfg(test)]
+pub(crate) fn assemble_by_triplets(
+    model: &Model,
+    formulation: Formulation,
+) -> Result<FeSystem, SimError> {
+    assemble_planned(model, formulation, false)
+}
+
+/// [`assemble_with`]; `planned`: by the mesh's kept [`ScatterPlan`] instead of triplets.
+fn assemble_planned(
+    model: &Model,
+    formulation: Formulation,
+    planned: bool,
+) -> Result<FeSystem, SimError> {
     model.validate()?;
     let mesh = Mesh::new(model);
     let map = DofMap::new(model, &mesh)?;
@@ -254,55 +283,87 @@ pub fn assemble_with(model: &Model, formulation: Formulation) -> Result<FeSystem
     } else {
         map.n_free
     };
-    let mut k_trip: Vec<Vec<Triplet<usize, usize, f64>>> = vec![Vec::new(); n_regions];
-    let mut m_trip = Vec::with_capacity(mesh.n_elements() * 33 * 33);
-    for k in 0..mesh.nz {
-        for j in 0..mesh.ny {
-            for i in 0..mesh.nx {
-                let e = (k * mesh.ny + j) * mesh.nx + i;
-                let r = mesh.region_of_element[e];
-                let mut dofs = element_dofs(&mesh.element_nodes(i, j, k), &map, e);
-                if !internal {
-                    dofs[24..].iter_mut().for_each(|d| *d = None);
-                }
-                scatter(&mut k_trip[r], &kes[r], &dofs);
-                scatter(&mut m_trip, &mes[r], &dofs);
-            }
+    let dofs_of = |i: usize, j: usize, k: usize, e: usize| {
+        let mut dofs = element_dofs(&mesh.element_nodes(i, j, k), &map, e);
+        if !internal {
+            dofs[24..].iter_mut().for_each(|d| *d = None);
         }
-    }
+        dofs
+    };
     // Point masses.
+    let mut point_masses = Vec::new();
     for pm in &model.point_masses {
         for c in 0..3 {
             let w = point_dofs(&mesh, &map, pm.x, pm.y, c);
             for &(p, wp) in &w {
                 for &(q, wq) in &w {
-                    m_trip.push(Triplet::new(p, q, pm.mass * wp * wq));
+                    point_masses.push(Triplet::new(p, q, pm.mass * wp * wq));
                 }
             }
         }
     }
-    let mass = sparse_from_triplets(n, &m_trip, "mass matrix")?;
-    drop(m_trip);
-    let mut terms = Vec::new();
-    for (r, trip) in k_trip.iter().enumerate() {
-        if trip.is_empty() {
-            continue;
+    let (mass, stiffness) = if planned {
+        let plan = ScatterPlan::for_mesh(&mesh, &map, internal, n, &dofs_of)?;
+        let region = &mesh.region_of_element;
+        let mut members = vec![Vec::new(); n_regions];
+        for (e, &r) in region.iter().enumerate() {
+            members[r].push(e);
         }
+        let all: Vec<usize> = (0..mesh.n_elements()).collect();
+        let mut mass = plan.assemble(&all, |e| &mes[region[e]]);
+        if !plan.add_in_place(&mut mass, &point_masses) {
+            let extra = sparse_from_triplets(n, &point_masses, "point masses")?;
+            mass = sparse_combination(n, &[(1.0, &mass), (1.0, &extra)], "mass matrix")?;
+        }
+        let stiffness = members
+            .iter()
+            .enumerate()
+            .map(|(r, elements)| {
+                (!elements.is_empty()).then(|| plan.assemble(elements, |_| &kes[r]))
+            })
+            .collect();
+        (mass, stiffness)
+    } else {
+        let mut k_trip: Vec<Vec<Triplet<usize, usize, f64>>> = vec![Vec::new(); n_regions];
+        let mut m_trip = Vec::with_capacity(mesh.n_elements() * 33 * 33);
+        for k in 0..mesh.nz {
+            for j in 0..mesh.ny {
+                for i in 0..mesh.nx {
+                    let e = (k * mesh.ny + j) * mesh.nx + i;
+                    let r = mesh.region_of_element[e];
+                    let dofs = dofs_of(i, j, k, e);
+                    scatter(&mut k_trip[r], &kes[r], &dofs);
+                    scatter(&mut m_trip, &mes[r], &dofs);
+                }
+            }
+        }
+        m_trip.extend_from_slice(&point_masses);
+        let mass = sparse_from_triplets(n, &m_trip, "mass matrix")?;
+        drop(m_trip);
+        let stiffness = k_trip
+            .iter()
+            .enumerate()
+            .map(|(r, trip)| {
+                let name = region_name(r);
+                (!trip.is_empty())
+                    .then(|| sparse_from_triplets(n, trip, &format!("stiffness of {name}")))
+                    .transpose()
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        (mass, stiffness)
+    };
+    let mut terms = Vec::new();
+    for (r, matrix) in stiffness.into_iter().enumerate() {
+        let Some(matrix) = matrix else { continue };
         let m = &materials[r];
-        let name = if r == 0 {
-            "plate".to_string()
-        } else {
-            format!("patch {}", r - 1)
-        };
         terms.push(StiffnessTerm {
-            matrix: sparse_from_triplets(n, trip, &format!("stiffness of {name}"))?,
-            name,
+            matrix,
+            name: region_name(r),
             loss_factor: m.loss_factor,
             sls: m.sls,
             reference_modulus_pa: m.youngs_modulus,
         });
     }
-    drop(k_trip);
     for (s, spring) in model.edge_springs.iter().enumerate() {
         let edge = Edge::parse(&spring.edge, &format!("edge_spring[{s}].edge"))?;
         let trip = edge_spring_triplets(&mesh, &map, edge, spring.stiffness_per_length);

@@ -11,10 +11,10 @@
 use std::time::Instant;
 
 use faer::linalg::solvers::Solve;
-use faer::sparse::{SparseColMat, Triplet};
+use faer::sparse::SparseColMat;
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
-use super::assembly::sparse_from_triplets;
+pub use super::combination::{sparse_combination, sparse_combination_by_triplets};
 use super::error::SimError;
 use super::spmm::sparse_times_dense;
 use super::system::FeSystem;
@@ -88,25 +88,6 @@ pub fn sparse_matvec(a: &SparseColMat<usize, f64>, x: &[f64], y: &mut [f64]) {
             y[i] += v * xj;
         }
     }
-}
-
-/// Σ_r c_r A_r as a new CSC matrix (`what` names it in errors).
-pub fn sparse_combination(
-    n: usize,
-    parts: &[(f64, &SparseColMat<usize, f64>)],
-    what: &str,
-) -> Result<SparseColMat<usize, f64>, SimError> {
-    let mut trip = Vec::with_capacity(parts.iter().map(|(_, a)| a.compute_nnz()).sum());
-    for &(c, a) in parts {
-        let a = a.as_ref();
-        for j in 0..n {
-            let rows = a.symbolic().row_idx_of_col_raw(j);
-            for (&i, &v) in rows.iter().zip(a.val_of_col(j)) {
-                trip.push(Triplet::new(i, j, c * v));
-            }
-        }
-    }
-    sparse_from_triplets(n, &trip, what)
 }
 
 /// K₀ = Σ_r K_r of a system.
@@ -262,7 +243,7 @@ pub fn lowest_modes_with(
     let sigma = -(2.0 * std::f64::consts::PI * options.shift_hz).powi(2);
     let k0 = reference_stiffness(system)?;
     let a = sparse_combination(n, &[(1.0, &k0), (-sigma, &system.mass)], "K0 - sigma M")?;
-    let llt = a.sp_cholesky(Side::Lower).map_err(|e| SimError::Linear {
+    let llt = super::reuse::cholesky(&a).map_err(|e| SimError::Linear {
         what: format!("Cholesky of K0 - sigma M (sigma = {sigma:e})"),
         message: format!("{e:?} (is the mass matrix positive definite?)"),
     })?;

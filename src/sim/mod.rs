@@ -2,6 +2,7 @@
 
 pub mod assembly;
 pub mod basis;
+pub mod combination;
 pub mod eigen;
 pub mod element;
 pub mod error;
@@ -15,6 +16,8 @@ pub mod model;
 pub mod poles;
 pub mod reduced;
 pub mod reduced_poles;
+pub mod reuse;
+mod scatter_plan;
 pub mod simulate;
 pub mod spmm;
 pub mod state_space;

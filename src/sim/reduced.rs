@@ -33,6 +33,7 @@ use super::eigen::{reference_stiffness, sparse_combination};
 use super::factored::{FactoredFrf, FrfSolve};
 use super::frf::{parallel_rows, validate_frequencies, validate_system, Frf, FrfError};
 use super::system::FeSystem;
+use std::sync::Arc;
 
 /// How the reduced system is solved per frequency.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -129,9 +130,9 @@ pub(super) fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64>
 
 /// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted
 /// K₀ + σM with σ = (2π · 1 Hz)² is used instead: the vectors are still good Ritz vectors.
-pub(super) fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError> {
+pub(super) fn static_solver(sys: &FeSystem) -> Result<Arc<Llt<usize, f64>>, FrfError> {
     let k = k0(sys)?;
-    match k.sp_cholesky(Side::Lower) {
+    match super::reuse::cholesky_reused(&k) {
         Ok(l) => Ok(l),
         Err(_) => {
             let sigma = (2.0 * std::f64::consts::PI).powi(2);
@@ -140,11 +141,10 @@ pub(super) fn static_solver(sys: &FeSystem) -> Result<Llt<usize, f64>, FrfError>
                     what: "K0 + σM assembly".into(),
                     message: e.to_string(),
                 })?;
-            ks.sp_cholesky(Side::Lower)
-                .map_err(|e| FrfError::Factorisation {
-                    what: "K0 (and K0 + σM) Cholesky for the static residual".into(),
-                    message: format!("{e:?}"),
-                })
+            super::reuse::cholesky_reused(&ks).map_err(|e| FrfError::Factorisation {
+                what: "K0 (and K0 + σM) Cholesky for the static residual".into(),
+                message: format!("{e:?}"),
+            })
         }
     }
 }

@@ -436,10 +436,10 @@ impl super::reduced::ReducedModel {
         )?;
         let llt = super::reduced::static_solver(sys)?;
         let f = Mat::from_fn(n, 1, |i, _| sys.force[i]);
-        let mut statics = faer::linalg::solvers::Solve::solve(&llt, f.as_ref());
+        let mut statics = faer::linalg::solvers::Solve::solve(&*llt, f.as_ref());
         for &r in &super::reduced::perturbing_regions(sys) {
             let kr0 = spmm(&sys.stiffness_terms[r].matrix, statics.col(0).as_mat());
-            let v = faer::linalg::solvers::Solve::solve(&llt, kr0.as_ref());
+            let v = faer::linalg::solvers::Solve::solve(&*llt, kr0.as_ref());
             statics = concat(&statics, &v);
         }
         // boundary modes in the band: the interiors' quasi-static response to their inertia
@@ -468,7 +468,7 @@ impl super::reduced::ReducedModel {
             .submatrix_mut(0, cb.residual_modes.len(), n, ni)
             .copy_from(&mphi);
         drop(mphi);
-        faer::linalg::solvers::Solve::solve_in_place(&llt, loads.as_mut());
+        faer::linalg::solvers::Solve::solve_in_place(&*llt, loads.as_mut());
         let orth = |basis: &Mat<f64>, m_basis: &Mat<f64>, cand: Mat<f64>| {
             super::reduced::m_orthonormalise_columns(
                 &sys.mass,
