@@ -52,7 +52,7 @@ fn kept() -> std::sync::MutexGuard<'static, Vec<Arc<ScatterPlan>>> {
 }
 
 impl ScatterPlan {
-    /// The plan of `mesh` with `map`, kept for the next assembly inside a reuse scope.
+    /// The plan of `mesh` with `map`; inside a reuse scope the kept one, or built and kept.
     /// `dofs_of(e)` gives element e's free dofs (the assembly's numbering); `n` is the size.
     pub(super) fn for_mesh(
         mesh: &Mesh,
@@ -66,7 +66,7 @@ impl ScatterPlan {
             internal,
             free: map.free.clone(),
         };
-        {
+        if super::reuse::active() {
             let mut plans = kept();
             if let Some(i) = plans.iter().position(|p| p.key == key && p.n == n) {
                 let plan = plans.remove(i);
