@@ -1,11 +1,12 @@
-//! Sparse Cholesky factors shared by the many models of one diagnosis.
+//! Work shared by the many models of one diagnosis: sparse Cholesky factors here, the mesh's
+//! assembly plan in [`super::scatter_plan`].
 //!
 //! A diagnosis solves dozens of candidate models of one mesh: the stiffness and the shifted
 //! K₀ − σM of every candidate have the same sparsity pattern, and a loss-only candidate (a
 //! damped patch, a viscoelastic layer on the plate's modulus) has the same K₀ as the model it
-//! came from, up to the order in which its terms were summed. Factorising each from scratch
-//! cost a third of a diagnosis (AMD ordering and symbolic analysis ~30 % of each
-//! factorisation, the static K₀ factor 470 ms × 30 per run on the reference plate).
+//! came from, up to the order in which its terms were summed. Factorised from scratch, the
+//! static K₀ factor took 470 ms × 30 calls of a run on the reference plate (a sixth of its
+//! CPU time), and each Lanczos solve repeated the AMD ordering and symbolic analysis (~150 ms).
 //!
 //! Inside a [`scope`] (the diagnosis opens one) this module keeps
 //! - the **symbolic** factorisation per sparsity pattern ([`cholesky`]): the numeric factor
@@ -17,7 +18,7 @@
 //!   as several. Used where the factor only builds basis vectors (the static residuals).
 //!
 //! Outside a scope nothing is kept (the simulator's one-off solves and the memory-budgeted
-//! streaming keep their footprint); the last scope to close empties the cache.
+//! streaming keep their footprint); the last scope to close empties the caches.
 
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{linalg::LltError, SparseColMat};
