@@ -25,14 +25,10 @@ pub fn sparse_combination(
     let Some(&(c0, first)) = parts.first() else {
         return sparse_from_triplets(n, &[], what);
     };
-    let same_pattern = |a: &SparseColMat<usize, f64>| {
-        let (s, f) = (a.symbolic(), first.symbolic());
-        s.col_nnz().is_none()
-            && f.col_nnz().is_none()
-            && s.col_ptr() == f.col_ptr()
-            && s.row_idx() == f.row_idx()
-    };
-    if parts.iter().all(|(_, a)| same_pattern(a)) {
+    let (f_ptr, f_rows) = (first.symbolic().col_ptr(), first.symbolic().row_idx());
+    if first.symbolic().col_nnz().is_none()
+        && parts.iter().all(|(_, a)| has_pattern(a, f_ptr, f_rows))
+    {
         let mut sum = first.clone();
         sum.val_mut().iter_mut().for_each(|x| *x *= c0);
         for &(c, a) in &parts[1..] {
@@ -87,6 +83,13 @@ pub fn sparse_combination(
     }
     let symbolic = SymbolicSparseColMat::new_checked(n, n, col_ptr, None, row_idx);
     Ok(SparseColMat::new(symbolic, values))
+}
+
+/// Whether `a` is a packed CSC matrix with exactly the pattern `col_ptr`, `row_idx` (the
+/// test for sharing values, a factor or a plan between matrices).
+pub fn has_pattern(a: &SparseColMat<usize, f64>, col_ptr: &[usize], row_idx: &[usize]) -> bool {
+    let s = a.symbolic();
+    s.col_nnz().is_none() && s.col_ptr() == col_ptr && s.row_idx() == row_idx
 }
 
 /// [`sparse_combination`] through triplets (any CSC input, sorted or not): its oracle, and its

@@ -23,6 +23,8 @@
 use faer::sparse::linalg::solvers::{Llt, SymbolicLlt};
 use faer::sparse::{linalg::LltError, SparseColMat};
 use faer::Side;
+
+use super::combination::has_pattern;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -59,11 +61,7 @@ impl Pattern {
     }
 
     fn matches(&self, a: &SparseColMat<usize, f64>) -> bool {
-        let s = a.symbolic();
-        a.nrows() == self.nrows
-            && s.col_nnz().is_none()
-            && s.col_ptr() == self.col_ptr.as_slice()
-            && s.row_idx() == self.row_idx.as_slice()
+        a.nrows() == self.nrows && has_pattern(a, &self.col_ptr, &self.row_idx)
     }
 }
 

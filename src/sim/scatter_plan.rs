@@ -12,6 +12,7 @@ use faer::sparse::{SparseColMat, SymbolicSparseColMat, Triplet};
 use std::sync::{Arc, Mutex};
 
 use super::assembly::{sparse_from_triplets, DofMap};
+use super::combination::has_pattern;
 use super::element::Mat33;
 use super::error::SimError;
 use super::mesh::Mesh;
@@ -247,7 +248,7 @@ impl ScatterPlan {
         m: &mut SparseColMat<usize, f64>,
         entries: &[Triplet<usize, usize, f64>],
     ) -> bool {
-        if m.symbolic().row_idx() != self.row_idx.as_slice() {
+        if !has_pattern(m, &self.col_ptr, &self.row_idx) {
             return false;
         }
         let mut places = Vec::with_capacity(entries.len());
