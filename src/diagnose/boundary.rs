@@ -13,9 +13,8 @@
 //! solved in the same basis so that the basis's own error cancels.
 
 use faer::linalg::solvers::Solve;
-use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::SparseColMat;
-use faer::{Accum, Mat, MatRef, Par, Side};
+use faer::{Mat, MatRef, Side};
 
 use super::evidence::{pair_modes, ModelPole, ModelView};
 use super::hypothesis::Hypothesis;
@@ -45,10 +44,9 @@ pub const ATTACHMENT_BLOCKS: usize = 2;
 /// Step of the coarse log10 k grid.
 const LOG10_STEP: f64 = 0.25;
 
+/// A model matrix (symmetric) times the columns of `b`.
 fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
-    sparse_dense_matmul(out.as_mut(), Accum::Replace, a.as_ref(), b, 1.0, Par::Seq);
-    out
+    crate::sim::spmm::symmetric_times_dense(a, b)
 }
 
 /// One edge's spring-supported model, reduced to the modes of both limits.

@@ -16,7 +16,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
 pub use super::combination::{sparse_combination, sparse_combination_by_triplets};
 use super::error::SimError;
-use super::spmm::sparse_times_dense;
+use super::spmm::symmetric_times_dense;
 use super::system::FeSystem;
 
 /// Which modes to compute.
@@ -382,11 +382,11 @@ fn refine(
         // No mode below the requested frequency: nothing to refine.
         return Ok((Vec::new(), phi));
     }
-    let mut y = sparse_times_dense(&system.mass, phi.as_ref());
+    let mut y = symmetric_times_dense(&system.mass, phi.as_ref());
     drop(phi);
     llt.solve_in_place(y.as_mut());
-    let ky = sparse_times_dense(k0, y.as_ref());
-    let my = sparse_times_dense(&system.mass, y.as_ref());
+    let ky = symmetric_times_dense(k0, y.as_ref());
+    let my = symmetric_times_dense(&system.mass, y.as_ref());
     let par = faer::get_global_parallelism();
     let mut kr = Mat::<f64>::zeros(k, k);
     let mut mr = Mat::<f64>::zeros(k, k);
@@ -501,8 +501,8 @@ fn converged(
 pub fn check_modes(system: &FeSystem, modes: &Modes) -> Result<(f64, f64), SimError> {
     let k0 = reference_stiffness(system)?;
     let m = modes.shapes.ncols();
-    let mphi = sparse_times_dense(&system.mass, modes.shapes.as_ref());
-    let kphi_all = sparse_times_dense(&k0, modes.shapes.as_ref());
+    let mphi = symmetric_times_dense(&system.mass, modes.shapes.as_ref());
+    let kphi_all = symmetric_times_dense(&k0, modes.shapes.as_ref());
     let mut worst_res: f64 = 0.0;
     for c in 0..m {
         let kphi = kphi_all.col_as_slice(c);

@@ -123,9 +123,9 @@ pub(crate) fn k0(sys: &FeSystem) -> Result<SparseColMat<usize, f64>, FrfError> {
     })
 }
 
-/// Sparse × dense product, real ([`super::spmm::sparse_times_dense`]).
+/// Sparse × dense product of a symmetric model matrix, real ([`super::spmm::symmetric_times_dense`]).
 pub(super) fn spmm(a: &SparseColMat<usize, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
-    super::spmm::sparse_times_dense(a, b)
+    super::spmm::symmetric_times_dense(a, b)
 }
 
 /// Static solve with K₀ (sparse Cholesky). If K₀ is singular (a free structure) the shifted

@@ -355,10 +355,38 @@ fn diagnose_removes_the_exponential_window_a_set_declares() {
             .cloned()
             .collect()
     };
-    // The window removed, the right model stands: nothing found, the damping as the model's.
+    // The window removed, the right model stands: nothing found, and every paired mode's
+    // damping is the model's within its own uncertainty. (Not the RMS under a fixed bound: the
+    // set's top pair is a weak pole at the band edge, 99.5–99.7 Hz, with a damping σ of
+    // 0.0013–0.0021, paired with the 114 Hz model mode; round-off-level changes of the
+    // simulated responses moved its damping by 5e-4, and the RMS from 5.1e-5 to 1.1e-4.)
     assert!(physics(&declared).is_empty(), "{declared}");
     let rms = declared["fit"]["before"]["damping_rms"].as_f64().unwrap();
-    assert!(rms < 1e-4, "{declared}");
+    let table = std::fs::read_to_string(declared_set.with_extension("diagnosis").join("modes.csv"))
+        .unwrap();
+    let mut lines = table.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let column = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (d, sd, dm) = (
+        column("damping_ratio"),
+        column("damping_std"),
+        column("model_damping_ratio"),
+    );
+    let mut within_1e5 = 0;
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| {
+            l.split(',')
+                .map(|v| v.parse().unwrap_or(f64::NAN))
+                .collect()
+        })
+        .collect();
+    for row in &rows {
+        let diff = (row[d] - row[dm]).abs();
+        assert!(diff <= 3.0 * row[sd] + 1e-6, "{row:?} in {table}");
+        within_1e5 += usize::from(diff < 1e-5);
+    }
+    // All but at most the edge pair agree to 1e-5 (the window alone adds 1.6e-3 at 100 Hz).
+    assert!(rows.len() >= 8 && within_1e5 + 1 >= rows.len(), "{table}");
     // Left in, it is taken for loss (the test would catch the window being ignored).
     assert!(!physics(&undeclared).is_empty(), "{undeclared}");
     let rms_undeclared = undeclared["fit"]["before"]["damping_rms"].as_f64().unwrap();

@@ -70,7 +70,7 @@ fn interface_solve_equals_the_dense_galerkin_solve_on_its_basis() {
         at += b.ncols();
     }
     let dense = |a: &faer::sparse::SparseColMat<usize, f64>| {
-        let av = dampscope::sim::spmm::sparse_times_dense(a, v.as_ref());
+        let av = dampscope::sim::spmm::symmetric_times_dense(a, v.as_ref());
         v.transpose() * &av
     };
     let m_hat = dense(&sys.mass);
