@@ -242,6 +242,25 @@ pub fn lowest_modes_with(
     let t0 = Instant::now();
     let sigma = -(2.0 * std::f64::consts::PI * options.shift_hz).powi(2);
     let k0 = reference_stiffness(system)?;
+    // Inside a diagnosis the same problem comes again (a candidate becoming the update).
+    let key = super::reuse::active().then(|| {
+        let request_words = match request {
+            ModeRequest::Count(c) => [0, c as u64],
+            ModeRequest::BelowHz(f) => [1, f.to_bits()],
+        };
+        let option_words = [
+            options.shift_hz.to_bits(),
+            options.tolerance.to_bits(),
+            options.seed,
+        ];
+        super::reuse::fingerprint(
+            &[&k0, &system.mass],
+            &[request_words.as_slice(), &option_words].concat(),
+        )
+    });
+    if let Some(kept) = key.as_ref().and_then(super::reuse::kept_modes) {
+        return Ok(kept);
+    }
     let a = sparse_combination(n, &[(1.0, &k0), (-sigma, &system.mass)], "K0 - sigma M")?;
     let llt = super::reuse::cholesky(&a).map_err(|e| SimError::Linear {
         what: format!("Cholesky of K0 - sigma M (sigma = {sigma:e})"),
@@ -358,13 +377,14 @@ pub fn lowest_modes_with(
     let (freqs, shapes) = refine(system, &k0, &llt, shapes)?;
     report.ritz_s = tz.elapsed().as_secs_f64();
     report.lanczos_s = t1.elapsed().as_secs_f64();
-    Ok((
-        Modes {
-            frequencies_hz: freqs,
-            shapes,
-        },
-        report,
-    ))
+    let modes = Modes {
+        frequencies_hz: freqs,
+        shapes,
+    };
+    if let Some(key) = key {
+        super::reuse::keep_modes(key, &modes, &report);
+    }
+    Ok((modes, report))
 }
 
 /// One step of subspace iteration with Rayleigh–Ritz on the converged Ritz vectors:
