@@ -122,11 +122,17 @@ pub fn strain_shares(model: &Model, modes: &Modes, cells: &[Region]) -> Result<M
     let mut energy = Mat::<f64>::zeros(n_modes, sys.stiffness_terms.len());
     for (t, term) in sys.stiffness_terms.iter().enumerate() {
         let (sym, val) = term.matrix.parts();
+        // A cell's term has entries in its own few columns only: visit those, not every dof
+        // per mode (the same additions in the same order).
+        let filled: Vec<usize> = (0..sys.n_free)
+            .filter(|&j| !sym.col_range(j).is_empty())
+            .collect();
         for i in 0..n_modes {
+            let shape = phi.col(i);
             let mut e = 0.0;
-            for j in 0..sys.n_free {
+            for &j in &filled {
                 for idx in sym.col_range(j) {
-                    e += phi[(sym.row_idx()[idx], i)] * val[idx] * phi[(j, i)];
+                    e += shape[sym.row_idx()[idx]] * val[idx] * shape[j];
                 }
             }
             energy[(i, t)] = e;

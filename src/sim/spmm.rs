@@ -54,11 +54,15 @@ fn symmetric_times_dense_with(
     }
     // B in row-major blocks of LANES columns, the last one padded with zeros: row j of block q
     // at (q·n + j)·LANES.
-    let mut blocks = vec![0.0; k.div_ceil(LANES) * n * LANES];
-    for c in 0..k {
-        let base = (c / LANES) * n * LANES + c % LANES;
-        for (j, &x) in b.col(c).iter().enumerate() {
-            blocks[base + j * LANES] = x;
+    // Written in order, a block row at a time (a column at a time, each write was to
+    // another cache line).
+    let mut blocks = Vec::with_capacity(k.div_ceil(LANES) * n * LANES);
+    for q in 0..k.div_ceil(LANES) {
+        let width = LANES.min(k - q * LANES);
+        let columns = b.subcols(q * LANES, width);
+        for j in 0..n {
+            let row = columns.row(j);
+            blocks.extend((0..LANES).map(|l| if l < width { row[l] } else { 0.0 }));
         }
     }
     let mid = n / 2;
