@@ -43,8 +43,12 @@ pub const REUSE_RELATIVE_TOLERANCE: f64 = 1e-12;
 const SYMBOLIC_ENTRIES: usize = 4;
 /// Numeric factors kept (each holds the factor and a copy of the matrix's values).
 const NUMERIC_ENTRIES: usize = 2;
-/// Solved eigenproblems kept (each its modes: dofs × modes values).
+/// Solved eigenproblems kept at most (each its modes: dofs × modes values).
 const MODES_ENTRIES: usize = 4;
+/// Bytes of kept mode shapes at most, in all (the oldest go first; a solution larger than this
+/// is not kept): 4 × 10 MB on the 42 000-dof plate, while a model of millions of dofs keeps one
+/// or none rather than gigabytes.
+const MODES_BYTES: usize = 256 << 20;
 
 static OPEN_SCOPES: AtomicUsize = AtomicUsize::new(0);
 static CACHE: Mutex<Cache> = Mutex::new(Cache {
@@ -206,8 +210,9 @@ pub fn cholesky_reused(a: &SparseColMat<usize, f64>) -> Result<Arc<Llt<usize, f6
 
 /// A 128-bit fingerprint of `matrices` (shapes, patterns, the bits of every value) and of
 /// `settings`: two independent multiply–xorshift lanes over every word, then mixed. Problems
-/// that differ anywhere share one by chance only (≈ 2⁻¹²⁸); a matrix of 2.4 M entries takes
-/// ~20 ms, against ~2 s for the Lanczos solve it can save.
+/// that differ anywhere share one only if both 64-bit lanes coincide (by chance ≈ 2⁻¹²⁸; it is
+/// not a cryptographic hash, and model matrices are not adversarial); a matrix of 2.4 M entries
+/// takes ~20 ms, against ~2 s for the Lanczos solve it can save.
 pub fn fingerprint(matrices: &[&SparseColMat<usize, f64>], settings: &[u64]) -> [u64; 2] {
     let mut lanes = Lanes {
         a: 0x243F_6A88_85A3_08D3,
@@ -269,13 +274,32 @@ pub fn kept_modes(key: &[u64; 2]) -> Option<(Modes, EigenReport)> {
     Some(found)
 }
 
-/// Inside a [`scope`]: keeps `modes` as the solution of the problem `key`.
+/// Inside a [`scope`]: keeps `modes` as the solution of the problem `key` (within
+/// [`MODES_ENTRIES`] and [`MODES_BYTES`]).
 pub fn keep_modes(key: [u64; 2], modes: &Modes, report: &EigenReport) {
-    if active() {
+    let bytes = |m: &Modes| m.shapes.nrows() * m.shapes.ncols() * std::mem::size_of::<f64>();
+    if active() && bytes(modes) <= MODES_BYTES {
         let mut cache = lock();
         cache.modes.insert(0, (key, modes.clone(), *report));
-        cache.modes.truncate(MODES_ENTRIES);
+        let sizes: Vec<usize> = cache.modes.iter().map(|(_, m, _)| bytes(m)).collect();
+        cache
+            .modes
+            .truncate(kept_count(&sizes, MODES_ENTRIES, MODES_BYTES));
     }
+}
+
+/// How many of the entries of `sizes` (bytes, newest first) stay: at most `max_entries`, and
+/// the newest ones whose sizes add up to at most `max_bytes`.
+fn kept_count(sizes: &[usize], max_entries: usize, max_bytes: usize) -> usize {
+    let mut total = 0;
+    sizes
+        .iter()
+        .take(max_entries)
+        .take_while(|&&b| {
+            total += b;
+            total <= max_bytes
+        })
+        .count()
 }
 
 #[cfg(test)]
@@ -341,6 +365,15 @@ mod tests {
             assert!(lock().numeric.is_empty() && lock().symbolic.is_empty());
         }
         solved_modes_are_kept_for_the_same_problem_only();
+    }
+
+    #[test]
+    fn kept_modes_stay_within_their_count_and_bytes() {
+        assert_eq!(kept_count(&[10, 20, 30], 4, 35), 2);
+        assert_eq!(kept_count(&[10, 20, 30], 2, 100), 2);
+        assert_eq!(kept_count(&[10, 20, 30], 4, 60), 3);
+        assert_eq!(kept_count(&[40, 1], 4, 35), 0);
+        assert_eq!(kept_count(&[], 4, 35), 0);
     }
 
     /// Part of the test above (the cache is process-wide): inside a scope the same problem gets

@@ -53,9 +53,8 @@ fn symmetric_times_dense_with(
         return out;
     }
     // B in row-major blocks of LANES columns, the last one padded with zeros: row j of block q
-    // at (q·n + j)·LANES.
-    // Written in order, a block row at a time (a column at a time, each write was to
-    // another cache line).
+    // at (q·n + j)·LANES. Written in order, a block row at a time (written a column at a time,
+    // each write went to another cache line).
     let mut blocks = Vec::with_capacity(k.div_ceil(LANES) * n * LANES);
     for q in 0..k.div_ceil(LANES) {
         let width = LANES.min(k - q * LANES);
