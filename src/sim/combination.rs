@@ -112,6 +112,22 @@ pub fn sparse_combination_by_triplets(
     sparse_from_triplets(n, &trip, what)
 }
 
+/// Test support: `a` and `b` have one pattern, and every pair of values passes `close`
+/// (the oracle tests of the fast assembly and sums).
+#[cfg(test)]
+pub(crate) fn assert_same_pattern(
+    a: &SparseColMat<usize, f64>,
+    b: &SparseColMat<usize, f64>,
+    what: &str,
+    close: impl Fn(f64, f64) -> bool,
+) {
+    assert_eq!(a.symbolic().col_ptr(), b.symbolic().col_ptr(), "{what}");
+    assert_eq!(a.symbolic().row_idx(), b.symbolic().row_idx(), "{what}");
+    for (&x, &y) in a.val().iter().zip(b.val()) {
+        assert!(close(x, y), "{what}: {x} vs {y}");
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -155,22 +171,9 @@ mod tests {
             for parts in &sets {
                 let fast = sparse_combination(n, parts, "t").unwrap();
                 let slow = sparse_combination_by_triplets(n, parts, "t").unwrap();
-                assert_eq!(
-                    fast.symbolic().col_ptr(),
-                    slow.symbolic().col_ptr(),
-                    "n {n}"
-                );
-                assert_eq!(
-                    fast.symbolic().row_idx(),
-                    slow.symbolic().row_idx(),
-                    "n {n}"
-                );
-                for (x, y) in fast.val().iter().zip(slow.val()) {
-                    assert!(
-                        (x - y).abs() <= 1e-12 * (1.0 + y.abs()),
-                        "n {n}: {x} vs {y}"
-                    );
-                }
+                assert_same_pattern(&fast, &slow, &format!("n {n}"), |x, y| {
+                    (x - y).abs() <= 1e-12 * (1.0 + y.abs())
+                });
             }
         }
         let (a, b) = (random(4, 2, 5), random(5, 2, 6));
