@@ -54,6 +54,30 @@ pub(crate) fn add<const L: usize>(a: Lanes<L>, b: Lanes<L>) -> Lanes<L> {
     std::array::from_fn(|l| a[l] + b[l])
 }
 
+/// Bands per wide group: 8 f64 lanes fill one AVX-512 register (used with AVX-512 only).
+pub(crate) const WIDE: usize = 8;
+/// Bands per narrow group: 4 f64 lanes fill one AVX2 register. With AVX-512 a narrow group
+/// takes a remainder of up to 4 bands (10 bands cost 12 lanes, not 16); otherwise all groups
+/// are narrow (wide ones would not fit in the 16 AVX2 registers).
+pub(crate) const NARROW: usize = 4;
+
+/// How a bank lays `bands` out in lanes on `isa`: `(wide, narrow)` group counts, the wide
+/// groups ([`WIDE`] lanes) first. Fewer than [`WIDE`] lanes are left empty in all.
+pub(crate) fn group_counts(isa: Isa, bands: usize) -> (usize, usize) {
+    #[cfg(target_arch = "x86_64")]
+    let (wide, rest) = match (isa, bands % WIDE) {
+        (Isa::Avx512, rem) if rem > NARROW => (bands.div_ceil(WIDE), 0),
+        (Isa::Avx512, rem) => (bands / WIDE, rem),
+        _ => (0, bands),
+    };
+    #[cfg(not(target_arch = "x86_64"))]
+    let (wide, rest) = {
+        let _ = isa;
+        (0, bands)
+    };
+    (wide, rest.div_ceil(NARROW))
+}
+
 /// Which instruction set the kernel runs with (detected once).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) enum Isa {

@@ -1,5 +1,6 @@
 //! The filtering kernel of the Goyder bank: every band's heterodyne and all-pole low-pass,
-//! interleaved so that one CPU vector instruction advances [`LANES`] bands by one sample.
+//! interleaved so that one CPU vector instruction advances 4 or 8 bands (an AVX2 or AVX-512
+//! register; [`super::super::simd::group_counts`]) by one sample.
 //!
 //! Per band and sample (f_h = band middle, G = the low-pass's DC gain folded into the
 //! oscillator's amplitude so the sections need no input multiply):
@@ -21,18 +22,12 @@
 //! than 0.01 dB for f < 0.01·fs; the decay slope, which is what the bank measures, does not
 //! depend on it.
 
-use super::super::simd::{madd, mul, nmadd, splat, Isa, Lanes};
+use super::super::simd::{group_counts, madd, mul, nmadd, splat, Isa, Lanes, NARROW, WIDE};
 use super::super::Band;
 
 /// Samples between exact resynchronisations of the heterodyne oscillators.
 pub(super) const RESYNC_SAMPLES: usize = 512;
 
-/// Bands per wide group: 8 f64 lanes fill one AVX-512 register (used with AVX-512 only).
-const WIDE: usize = 8;
-/// Bands per narrow group: 4 f64 lanes fill one AVX2 register. With AVX-512 a narrow group
-/// takes a remainder of up to 4 bands (10 bands cost 12 lanes, not 16); otherwise all groups
-/// are narrow (wide ones would not fit in the 16 AVX2 registers).
-const NARROW: usize = 4;
 /// Most all-pole sections per band (order 8).
 const MAX_SECTIONS: usize = 4;
 
@@ -217,20 +212,13 @@ impl Kernel {
 
     fn with_isa(bands: &[Band], order: usize, fs_hz: f64, isa: Isa) -> Self {
         let nb = bands.len();
-        #[cfg(target_arch = "x86_64")]
-        let (n_wide, rest) = match (isa, nb % WIDE) {
-            (Isa::Avx512, rem) if rem > NARROW => (nb.div_ceil(WIDE), 0),
-            (Isa::Avx512, rem) => (nb / WIDE, rem),
-            _ => (0, nb),
-        };
-        #[cfg(not(target_arch = "x86_64"))]
-        let (n_wide, rest) = (0, nb);
+        let (n_wide, n_narrow) = group_counts(isa, nb);
         let mut kernel = Kernel {
             freq_hz: Vec::with_capacity(nb),
             gain: Vec::with_capacity(nb),
             sections: order / 2,
             wide: vec![Group::ZERO; n_wide],
-            narrow: vec![Group::ZERO; rest.div_ceil(NARROW)],
+            narrow: vec![Group::ZERO; n_narrow],
             isa,
         };
         for (b, band) in bands.iter().enumerate() {

@@ -1,5 +1,7 @@
-//! The filtering kernel of the octave bank: every band's biquad cascade, [`LANES`] bands per
-//! group so that one CPU vector instruction advances a group by one sample.
+//! The filtering kernel of the octave bank: every band's biquad cascade, 4 or 8 bands per
+//! group (an AVX2 or AVX-512 register; [`group_counts`]) so that one CPU vector instruction
+//! advances a group by one sample. Each lane's arithmetic is the same instructions in the same
+//! order whatever the group's width, so the outputs do not depend on it.
 //!
 //! Per band, sample and section k (transposed direct form II, as the `biquad` crate computes
 //! it; the band-pass design has b1 = 0):
@@ -20,31 +22,27 @@
 //! (b0 = 1, everything else 0), so each common order runs fully unrolled; lanes without a band
 //! have zero coefficients and stay exactly zero.
 
-use super::super::simd::{add, madd, mul, nmadd, splat, Isa, Lanes};
+use super::super::simd::{add, group_counts, madd, mul, nmadd, splat, Isa, Lanes, NARROW, WIDE};
 
-/// Bands per group: 4 f64 lanes fill one AVX2 register.
-pub(super) const LANES: usize = 4;
 /// Most sections a cascade may have (order 16).
 const MAX_SECTIONS: usize = 16;
-
-type L4 = Lanes<LANES>;
 
 /// Frame sums of one band: Σy², Σy[n−1]·(y[n] + y[n−2]), Σy[n−1]².
 pub(super) type FrameSums = [f64; 3];
 
-/// Coefficients and state of [`LANES`] bands.
+/// Coefficients and state of `L` bands.
 #[derive(Clone, Copy, Debug)]
-struct Group {
-    b0: [L4; MAX_SECTIONS],
-    b2: [L4; MAX_SECTIONS],
-    a1: [L4; MAX_SECTIONS],
-    a2: [L4; MAX_SECTIONS],
-    s1: [L4; MAX_SECTIONS],
-    s2: [L4; MAX_SECTIONS],
+struct Group<const L: usize> {
+    b0: [Lanes<L>; MAX_SECTIONS],
+    b2: [Lanes<L>; MAX_SECTIONS],
+    a1: [Lanes<L>; MAX_SECTIONS],
+    a2: [Lanes<L>; MAX_SECTIONS],
+    s1: [Lanes<L>; MAX_SECTIONS],
+    s2: [Lanes<L>; MAX_SECTIONS],
     /// The cascade's last two outputs, y[n−1] and y[n−2].
-    y1: L4,
-    y2: L4,
-    sums: [L4; 3],
+    y1: Lanes<L>,
+    y2: Lanes<L>,
+    sums: [Lanes<L>; 3],
 }
 
 /// A sample the kernel reads: f64, or an f32 (a decay held in single precision) widened
@@ -79,18 +77,34 @@ struct Span<'a, S> {
     n_bands: usize,
 }
 
-impl Group {
-    const ZERO: Group = Group {
-        b0: [[0.0; LANES]; MAX_SECTIONS],
-        b2: [[0.0; LANES]; MAX_SECTIONS],
-        a1: [[0.0; LANES]; MAX_SECTIONS],
-        a2: [[0.0; LANES]; MAX_SECTIONS],
-        s1: [[0.0; LANES]; MAX_SECTIONS],
-        s2: [[0.0; LANES]; MAX_SECTIONS],
-        y1: [0.0; LANES],
-        y2: [0.0; LANES],
-        sums: [[0.0; LANES]; 3],
+impl<const L: usize> Group<L> {
+    const ZERO: Group<L> = Group {
+        b0: [[0.0; L]; MAX_SECTIONS],
+        b2: [[0.0; L]; MAX_SECTIONS],
+        a1: [[0.0; L]; MAX_SECTIONS],
+        a2: [[0.0; L]; MAX_SECTIONS],
+        s1: [[0.0; L]; MAX_SECTIONS],
+        s2: [[0.0; L]; MAX_SECTIONS],
+        y1: [0.0; L],
+        y2: [0.0; L],
+        sums: [[0.0; L]; 3],
     };
+
+    /// Sets lane `l` to `cascade` (`[b0, b1, b2, a1, a2]` per section, b1 = 0), padded to
+    /// `padded` sections with identity sections.
+    fn set_band(&mut self, l: usize, cascade: &[[f64; 5]], padded: usize) {
+        debug_assert!(
+            cascade.iter().all(|c| c[1] == 0.0),
+            "band-pass sections have b1 = 0"
+        );
+        for k in 0..padded {
+            let [b0, _, b2, a1, a2] = cascade.get(k).copied().unwrap_or([1.0, 0.0, 0.0, 0.0, 0.0]);
+            self.b0[k][l] = b0;
+            self.b2[k][l] = b2;
+            self.a1[k][l] = a1;
+            self.a2[k][l] = a2;
+        }
+    }
 
     /// Zeroes the filter states and frame sums, keeping the coefficients.
     fn clear(&mut self) {
@@ -107,15 +121,15 @@ impl Group {
     fn step<const NS: usize, const ACC: bool, const FMA: bool>(&mut self, x: f64) {
         let mut u = splat(x);
         for k in 0..NS {
-            let y = madd::<FMA, LANES>(self.b0[k], u, self.s1[k]);
-            self.s1[k] = nmadd::<FMA, LANES>(self.a1[k], y, self.s2[k]);
-            self.s2[k] = nmadd::<FMA, LANES>(self.a2[k], y, mul(self.b2[k], u));
+            let y = madd::<FMA, L>(self.b0[k], u, self.s1[k]);
+            self.s1[k] = nmadd::<FMA, L>(self.a1[k], y, self.s2[k]);
+            self.s2[k] = nmadd::<FMA, L>(self.a2[k], y, mul(self.b2[k], u));
             u = y;
         }
         if ACC {
-            self.sums[0] = madd::<FMA, LANES>(u, u, self.sums[0]);
-            self.sums[1] = madd::<FMA, LANES>(self.y1, add(u, self.y2), self.sums[1]);
-            self.sums[2] = madd::<FMA, LANES>(self.y1, self.y1, self.sums[2]);
+            self.sums[0] = madd::<FMA, L>(u, u, self.sums[0]);
+            self.sums[1] = madd::<FMA, L>(self.y1, add(u, self.y2), self.sums[1]);
+            self.sums[2] = madd::<FMA, L>(self.y1, self.y1, self.sums[2]);
         }
         self.y2 = self.y1;
         self.y1 = u;
@@ -144,11 +158,11 @@ impl Group {
                 }
             }
             if ACC && end == boundary {
-                for l in 0..LANES.min(span.n_bands.saturating_sub(lane0)) {
+                for l in 0..L.min(span.n_bands.saturating_sub(lane0)) {
                     out[frame * span.n_bands + lane0 + l] =
                         [g.sums[0][l], g.sums[1][l], g.sums[2][l]];
                 }
-                g.sums = [[0.0; LANES]; 3];
+                g.sums = [[0.0; L]; 3];
                 frame += 1;
                 boundary = boundary.saturating_add(span.hop);
             }
@@ -158,10 +172,12 @@ impl Group {
     }
 }
 
-/// The interleaved filter state of every band of one channel.
+/// The interleaved filter state of every band of one channel: bands `0..WIDE·wide.len()` in
+/// wide groups, the rest in narrow groups.
 #[derive(Clone, Debug)]
 pub(super) struct Kernel {
-    groups: Vec<Group>,
+    wide: Vec<Group<WIDE>>,
+    narrow: Vec<Group<NARROW>>,
     /// Sections per cascade after padding (1, 2, 3, 4, 6, 8 or 16).
     padded_sections: usize,
     n_bands: usize,
@@ -186,24 +202,21 @@ impl Kernel {
             .into_iter()
             .find(|&p| p >= ns)
             .unwrap_or(MAX_SECTIONS);
-        let mut groups = vec![Group::ZERO; sections.len().div_ceil(LANES)];
+        let (n_wide, n_narrow) = group_counts(isa, sections.len());
+        let mut wide = vec![Group::ZERO; n_wide];
+        let mut narrow = vec![Group::ZERO; n_narrow];
+        let first_narrow = n_wide * WIDE;
         for (b, cascade) in sections.iter().enumerate() {
-            let (g, l) = (&mut groups[b / LANES], b % LANES);
-            debug_assert!(
-                cascade.iter().all(|c| c[1] == 0.0),
-                "band-pass sections have b1 = 0"
-            );
-            for k in 0..padded_sections {
-                let [b0, _, b2, a1, a2] =
-                    cascade.get(k).copied().unwrap_or([1.0, 0.0, 0.0, 0.0, 0.0]);
-                g.b0[k][l] = b0;
-                g.b2[k][l] = b2;
-                g.a1[k][l] = a1;
-                g.a2[k][l] = a2;
+            if b < first_narrow {
+                wide[b / WIDE].set_band(b % WIDE, cascade, padded_sections);
+            } else {
+                let b = b - first_narrow;
+                narrow[b / NARROW].set_band(b % NARROW, cascade, padded_sections);
             }
         }
         Kernel {
-            groups,
+            wide,
+            narrow,
             padded_sections,
             n_bands: sections.len(),
             isa,
@@ -212,7 +225,8 @@ impl Kernel {
 
     /// Zeroes every filter state and frame sum.
     pub(super) fn clear(&mut self) {
-        self.groups.iter_mut().for_each(Group::clear);
+        self.wide.iter_mut().for_each(Group::clear);
+        self.narrow.iter_mut().for_each(Group::clear);
     }
 
     /// Filters `xs` (from its end to its start when `reversed`) through every band.
@@ -247,8 +261,11 @@ impl Kernel {
         let acc = frames.is_some();
         match self.isa {
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: `Isa::detect` found AVX2 (or AVX-512F) and FMA on this CPU.
-            Isa::Avx2Fma | Isa::Avx512 => unsafe { self.filter_avx2(&span, acc, out) },
+            // SAFETY: `Isa::detect` found AVX2 and FMA on this CPU.
+            Isa::Avx2Fma => unsafe { self.filter_avx2(&span, acc, out) },
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Isa::detect` found AVX-512F and FMA on this CPU.
+            Isa::Avx512 => unsafe { self.filter_avx512(&span, acc, out) },
             // aarch64 always has fused multiply-add; x86-64 without the feature would call libm.
             Isa::Generic => self.dispatch::<{ cfg!(target_arch = "aarch64") }, S>(&span, acc, out),
         }
@@ -257,6 +274,17 @@ impl Kernel {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn filter_avx2<S: Sample>(
+        &mut self,
+        span: &Span<'_, S>,
+        acc: bool,
+        out: &mut [FrameSums],
+    ) {
+        self.dispatch::<true, S>(span, acc, out);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,fma")]
+    unsafe fn filter_avx512<S: Sample>(
         &mut self,
         span: &Span<'_, S>,
         acc: bool,
@@ -296,8 +324,12 @@ impl Kernel {
         span: &Span<'_, impl Sample>,
         out: &mut [FrameSums],
     ) {
-        for (i, g) in self.groups.iter_mut().enumerate() {
-            g.run::<NS, ACC, FMA>(span, i * LANES, out);
+        for (i, g) in self.wide.iter_mut().enumerate() {
+            g.run::<NS, ACC, FMA>(span, i * WIDE, out);
+        }
+        let first_narrow = self.wide.len() * WIDE;
+        for (i, g) in self.narrow.iter_mut().enumerate() {
+            g.run::<NS, ACC, FMA>(span, first_narrow + i * NARROW, out);
         }
     }
 }
@@ -359,7 +391,7 @@ mod tests {
             })
             .collect();
         let hop = 16;
-        for n_bands in [1, 4, 5, 6] {
+        for n_bands in [1, 4, 5, 6, 7] {
             for order in [1, 3, 5, 14] {
                 let sections = bank(n_bands, order, fs);
                 let want = oracle(&sections, &xs, hop);
@@ -396,6 +428,40 @@ mod tests {
                             );
                         }
                     }
+                }
+            }
+        }
+    }
+
+    /// A band's outputs do not depend on the width of the group its lane is in: every
+    /// instruction set with fused multiply-add gives the same bits, for every band count (wide
+    /// groups, narrow groups, both), and the lanes cover the bands without a gap.
+    #[test]
+    fn group_width_does_not_change_a_bit() {
+        let fused: Vec<Isa> = Isa::available()
+            .into_iter()
+            .filter(|&isa| isa != Isa::Generic || cfg!(target_arch = "aarch64"))
+            .collect();
+        let xs: Vec<f64> = (0..1500)
+            .map(|n| ((n * 7919) % 211) as f64 / 211.0 - 0.5)
+            .collect();
+        for n_bands in 1..=17 {
+            let sections = bank(n_bands, 3, 8.0e6);
+            let mut first: Option<Vec<u64>> = None;
+            for &isa in &fused {
+                let mut k = Kernel::with_isa(&sections, isa);
+                let lanes = WIDE * k.wide.len() + NARROW * k.narrow.len();
+                assert!(
+                    lanes >= n_bands && lanes < n_bands + WIDE,
+                    "{isa:?} {n_bands}"
+                );
+                let mut out = Vec::new();
+                k.filter(&xs, true, Some((7, 16)), &mut out);
+                let bits: Vec<u64> = out.iter().flatten().map(|x| x.to_bits()).collect();
+                assert_eq!(out.len(), (1 + (1500 - 7) / 16) * n_bands);
+                match &first {
+                    None => first = Some(bits),
+                    Some(f) => assert!(f == &bits, "{isa:?}, {n_bands} bands"),
                 }
             }
         }
