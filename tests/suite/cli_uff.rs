@@ -362,7 +362,9 @@ fn diagnose_removes_the_exponential_window_a_set_declares() {
     // frequency RMS 4.2 Hz, damping RMS 1.1e-4 for the right model.)
     assert!(physics(&declared).is_empty(), "{declared}");
     let rms = declared["fit"]["before"]["damping_rms"].as_f64().unwrap();
-    let frequency_rms_hz = declared["fit"]["before"]["frequency_rms_hz"].as_f64().unwrap();
+    let frequency_rms_hz = declared["fit"]["before"]["frequency_rms_hz"]
+        .as_f64()
+        .unwrap();
     assert!(rms < 1e-5 && frequency_rms_hz < 1e-3, "{declared}");
     let table = std::fs::read_to_string(declared_set.with_extension("diagnosis").join("modes.csv"))
         .unwrap();
