@@ -13,6 +13,7 @@ pub mod goyder;
 mod hann_gain;
 pub mod iec_bands;
 pub(crate) mod lane_acos;
+pub(crate) mod lane_atan2;
 pub mod octave_bank;
 pub(crate) mod simd;
 pub mod stft;

@@ -321,27 +321,36 @@ impl Kernel {
         }
     }
 
-    /// Moves the frame sums into `energy`/`freq` (one frame of `hop` samples) and clears them.
+    /// Moves the frame sums into `energy` (one frame of `hop` samples) and each band's lag
+    /// product Σ z·conj(z[m−1]) into `lag_re`/`lag_im`, and clears them. The frame's frequency
+    /// is `f_h + arg(lag)·fs/2π` ([`crate::frontend::lane_atan2::frame_frequency`] with
+    /// [`Kernel::heterodyne_hz`]), taken for whole decays at once.
     pub(super) fn take_frame(
         &mut self,
         hop: usize,
-        fs_hz: f64,
         energy: &mut [f64],
-        freq: &mut [f64],
+        lag_re: &mut [f64],
+        lag_im: &mut [f64],
     ) {
         for b in 0..self.freq_hz.len() {
-            let f_h = self.freq_hz[b];
             let [e, re, im] = match self.slot(b) {
                 Slot::Wide(g, l) => g.take_sums(l),
                 Slot::Narrow(g, l) => g.take_sums(l),
             };
             energy[b] = 2.0 * e / hop as f64;
-            freq[b] = if re == 0.0 && im == 0.0 {
-                f64::NAN
-            } else {
-                f_h + im.atan2(re) * fs_hz / (2.0 * std::f64::consts::PI)
-            };
+            lag_re[b] = re;
+            lag_im[b] = im;
         }
+    }
+
+    /// Each band's heterodyne frequency f_h, Hz.
+    pub(super) fn heterodyne_hz(&self) -> &[f64] {
+        &self.freq_hz
+    }
+
+    /// The instruction set the kernel runs with.
+    pub(super) fn isa(&self) -> Isa {
+        self.isa
     }
 }
 
@@ -363,12 +372,16 @@ mod tests {
         let mut k = Kernel::with_isa(bands, order, fs, isa);
         k.clear();
         let mut out = Vec::new();
-        let (mut e, mut f) = (vec![0.0; bands.len()], vec![0.0; bands.len()]);
+        let nb = bands.len();
+        let (mut e, mut re, mut im) = (vec![0.0; nb], vec![0.0; nb], vec![0.0; nb]);
         for (i, span) in x.chunks(37).enumerate() {
             k.resync(i * 37, fs);
             k.filter_span(span, true, i % 5 != 0);
-            k.take_frame(37, fs, &mut e, &mut f);
-            out.extend(e.iter().copied().zip(f.iter().copied()));
+            k.take_frame(37, &mut e, &mut re, &mut im);
+            let f = (0..nb).map(|b| {
+                crate::frontend::lane_atan2::frame_frequency(re[b], im[b], k.heterodyne_hz()[b], fs)
+            });
+            out.extend(e.iter().copied().zip(f));
         }
         out
     }

@@ -31,7 +31,7 @@ use kernel::{band_design, Kernel, RESYNC_SAMPLES};
 
 use super::buffered::DecayBuffer;
 pub use super::buffered::FilterDirection;
-use super::{Band, FrameSink, FrontEnd, Resolution};
+use super::{lane_atan2, Band, FrameSink, FrontEnd, Resolution};
 use crate::decay::FrequencyCoding;
 use crate::error::{Error, Result};
 
@@ -84,60 +84,17 @@ impl GoyderFrontEnd {
     /// The `n_frames` frames of a decay from its samples, in the bank's direction, to `sink`.
     fn filter_decay(&mut self, buffer: &[f64], n_frames: usize, sink: &mut dyn FrameSink) {
         let (n_total, hop, nb) = (buffer.len(), self.hop, self.bands.len());
-        let used = n_frames * hop;
+        thread_local! {
+            /// The lag products' imaginary parts of a decay's frames (their real parts go where
+            /// the frequencies will be).
+            static LAG_IM: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
         super::with_band_frame_arrays(n_frames * nb, |energy, freq| {
-            let fs = self.sample_rate_hz;
-            let kernel = &mut self.kernel;
-            kernel.clear();
-            // One frame's bands, then each to its band's run of frames.
-            let (mut row_e, mut row_f) = (vec![0.0; nb], vec![0.0; nb]);
-            let mut flush = |kernel: &mut Kernel, k: usize| {
-                kernel.take_frame(hop, fs, &mut row_e, &mut row_f);
-                for b in 0..nb {
-                    energy[b * n_frames + k] = row_e[b];
-                    freq[b * n_frames + k] = row_f[b];
-                }
-            };
-            // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
-            // samples), frame boundaries, and the start of the kept part (reversed mode).
-            match self.settings.direction {
-                FilterDirection::Reversed => {
-                    let (mut n_end, mut m) = (n_total, 0usize);
-                    while n_end > 0 {
-                        if m % RESYNC_SAMPLES == 0 {
-                            kernel.resync(m, fs);
-                        }
-                        let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
-                        let lo = if n_end > used {
-                            used.max(cap)
-                        } else {
-                            ((n_end - 1) / hop * hop).max(cap)
-                        };
-                        kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
-                        m += n_end - lo;
-                        if n_end <= used && lo.is_multiple_of(hop) {
-                            flush(kernel, lo / hop);
-                        }
-                        n_end = lo;
-                    }
-                }
-                FilterDirection::Forward => {
-                    let mut n0 = 0;
-                    while n0 < used {
-                        if n0 % RESYNC_SAMPLES == 0 {
-                            kernel.resync(n0, fs);
-                        }
-                        let n1 = used
-                            .min((n0 / hop + 1) * hop)
-                            .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
-                        kernel.filter_span(&buffer[n0..n1], false, true);
-                        if n1.is_multiple_of(hop) {
-                            flush(kernel, n1 / hop - 1);
-                        }
-                        n0 = n1;
-                    }
-                }
-            }
+            super::with_thread_scratch(&LAG_IM, |lag_im| {
+                lag_im.clear();
+                lag_im.resize(n_frames * nb, 0.0);
+                self.filter_frames(buffer, n_frames, energy, freq, lag_im);
+            });
             // Each band holds the frames before its own transient zone.
             let band_frames: Vec<usize> = self
                 .band_cut_samples
@@ -146,6 +103,85 @@ impl GoyderFrontEnd {
                 .collect();
             super::emit_band_frames(sink, energy, freq, FrequencyCoding::Hz, &band_frames);
         });
+    }
+
+    /// Filters the decay in `buffer` into `n_frames` frames, band-major: `energy`, and the
+    /// frame frequencies in `freq` (`lag_im` is the scratch of the lag products' imaginary
+    /// parts), the phases taken for every frame at once.
+    fn filter_frames(
+        &mut self,
+        buffer: &[f64],
+        n_frames: usize,
+        energy: &mut [f64],
+        freq: &mut [f64],
+        lag_im: &mut [f64],
+    ) {
+        let (n_total, hop, nb) = (buffer.len(), self.hop, self.bands.len());
+        let used = n_frames * hop;
+        let fs = self.sample_rate_hz;
+        let kernel = &mut self.kernel;
+        kernel.clear();
+        // One frame's bands, then each to its band's run of frames.
+        let (mut row_e, mut row_re, mut row_im) = (vec![0.0; nb], vec![0.0; nb], vec![0.0; nb]);
+        let mut flush = |kernel: &mut Kernel, k: usize| {
+            kernel.take_frame(hop, &mut row_e, &mut row_re, &mut row_im);
+            for b in 0..nb {
+                energy[b * n_frames + k] = row_e[b];
+                freq[b * n_frames + k] = row_re[b];
+                lag_im[b * n_frames + k] = row_im[b];
+            }
+        };
+        // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
+        // samples), frame boundaries, and the start of the kept part (reversed mode).
+        match self.settings.direction {
+            FilterDirection::Reversed => {
+                let (mut n_end, mut m) = (n_total, 0usize);
+                while n_end > 0 {
+                    if m % RESYNC_SAMPLES == 0 {
+                        kernel.resync(m, fs);
+                    }
+                    let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
+                    let lo = if n_end > used {
+                        used.max(cap)
+                    } else {
+                        ((n_end - 1) / hop * hop).max(cap)
+                    };
+                    kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
+                    m += n_end - lo;
+                    if n_end <= used && lo.is_multiple_of(hop) {
+                        flush(kernel, lo / hop);
+                    }
+                    n_end = lo;
+                }
+            }
+            FilterDirection::Forward => {
+                let mut n0 = 0;
+                while n0 < used {
+                    if n0 % RESYNC_SAMPLES == 0 {
+                        kernel.resync(n0, fs);
+                    }
+                    let n1 = used
+                        .min((n0 / hop + 1) * hop)
+                        .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
+                    kernel.filter_span(&buffer[n0..n1], false, true);
+                    if n1.is_multiple_of(hop) {
+                        flush(kernel, n1 / hop - 1);
+                    }
+                    n0 = n1;
+                }
+            }
+        }
+        let isa = kernel.isa();
+        for (b, &f_h) in kernel.heterodyne_hz().iter().enumerate() {
+            let run = b * n_frames..(b + 1) * n_frames;
+            lane_atan2::frame_frequencies_in_place(
+                isa,
+                &mut freq[run.clone()],
+                &lag_im[run],
+                f_h,
+                fs,
+            );
+        }
     }
 
     /// A filter bank over `bands` at `sample_rate_hz`. Errors on impossible settings (odd or
