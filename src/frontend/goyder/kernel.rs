@@ -120,10 +120,16 @@ impl<const L: usize> Group<L> {
         self.osc_im[l] = im;
     }
 
-    /// Lane `l`'s frame sums (Σ|z|², Re and Im of Σ z·conj(z[m−1])), cleared.
-    fn take_sums(&mut self, l: usize) -> [f64; 3] {
-        let s: [f64; 6] = std::array::from_fn(|i| std::mem::take(&mut self.sums[i][l]));
-        [s[0] + s[1], s[2] + s[3], s[4] - s[5]]
+    /// The frame sums of the group's first `bands` lanes, cleared: lane l's frame energy
+    /// 2Σ|z|²/hop and lag product Σ z·conj(z[m−1]) to `out` at `first + l·stride`.
+    fn take_sums(&mut self, bands: usize, hop: usize, out: FrameOut<'_>, first: usize) {
+        let s = std::mem::replace(&mut self.sums, [[0.0; L]; 6]);
+        for l in 0..bands.min(L) {
+            let at = first + l * out.stride;
+            out.energy[at] = 2.0 * (s[0][l] + s[1][l]) / hop as f64;
+            out.lag_re[at] = s[2][l] + s[3][l];
+            out.lag_im[at] = s[4][l] - s[5][l];
+        }
     }
 
     /// Runs the group over `xs` (backwards when `reversed`) with its state held in locals.
@@ -196,6 +202,29 @@ pub(super) struct Kernel {
     wide: Vec<Group<WIDE>>,
     narrow: Vec<Group<NARROW>>,
     isa: Isa,
+}
+
+/// Where a frame's sums go: per band, energy and lag product, band b's frames `stride` apart.
+pub(super) struct FrameOut<'a> {
+    /// Frame energies, 2Σ|z|²/hop.
+    pub(super) energy: &'a mut [f64],
+    /// Real parts of the lag products.
+    pub(super) lag_re: &'a mut [f64],
+    /// Imaginary parts of the lag products.
+    pub(super) lag_im: &'a mut [f64],
+    /// Distance between band b's and band b + 1's entry of one frame.
+    pub(super) stride: usize,
+}
+
+impl FrameOut<'_> {
+    fn reborrow(&mut self) -> FrameOut<'_> {
+        FrameOut {
+            energy: self.energy,
+            lag_re: self.lag_re,
+            lag_im: self.lag_im,
+            stride: self.stride,
+        }
+    }
 }
 
 /// Where band `b` lives: a lane of a wide group or of the narrow group.
@@ -321,25 +350,20 @@ impl Kernel {
         }
     }
 
-    /// Moves the frame sums into `energy` (one frame of `hop` samples) and each band's lag
-    /// product Σ z·conj(z[m−1]) into `lag_re`/`lag_im`, and clears them. The frame's frequency
+    /// Moves one frame's sums (`hop` samples) into `out` at `frame` and clears them: band b's
+    /// energy and lag product Σ z·conj(z[m−1]) at `b·out.stride + frame`. The frame's frequency
     /// is `f_h + arg(lag)·fs/2π` ([`crate::frontend::lane_atan2::frame_frequency`] with
     /// [`Kernel::heterodyne_hz`]), taken for whole decays at once.
-    pub(super) fn take_frame(
-        &mut self,
-        hop: usize,
-        energy: &mut [f64],
-        lag_re: &mut [f64],
-        lag_im: &mut [f64],
-    ) {
-        for b in 0..self.freq_hz.len() {
-            let [e, re, im] = match self.slot(b) {
-                Slot::Wide(g, l) => g.take_sums(l),
-                Slot::Narrow(g, l) => g.take_sums(l),
-            };
-            energy[b] = 2.0 * e / hop as f64;
-            lag_re[b] = re;
-            lag_im[b] = im;
+    pub(super) fn take_frame(&mut self, hop: usize, frame: usize, mut out: FrameOut<'_>) {
+        let (nb, stride) = (self.freq_hz.len(), out.stride);
+        let mut band = 0;
+        for g in &mut self.wide {
+            g.take_sums(nb - band, hop, out.reborrow(), band * stride + frame);
+            band += WIDE;
+        }
+        for g in &mut self.narrow {
+            g.take_sums(nb - band, hop, out.reborrow(), band * stride + frame);
+            band += NARROW;
         }
     }
 
@@ -377,7 +401,16 @@ mod tests {
         for (i, span) in x.chunks(37).enumerate() {
             k.resync(i * 37, fs);
             k.filter_span(span, true, i % 5 != 0);
-            k.take_frame(37, &mut e, &mut re, &mut im);
+            k.take_frame(
+                37,
+                0,
+                FrameOut {
+                    energy: &mut e,
+                    lag_re: &mut re,
+                    lag_im: &mut im,
+                    stride: 1,
+                },
+            );
             let f = (0..nb).map(|b| {
                 crate::frontend::lane_atan2::frame_frequency(re[b], im[b], k.heterodyne_hz()[b], fs)
             });

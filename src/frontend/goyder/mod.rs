@@ -27,7 +27,7 @@
 mod kernel;
 
 pub use kernel::butterworth_allpole;
-use kernel::{band_design, Kernel, RESYNC_SAMPLES};
+use kernel::{band_design, FrameOut, Kernel, RESYNC_SAMPLES};
 
 use super::buffered::DecayBuffer;
 pub use super::buffered::FilterDirection;
@@ -116,20 +116,21 @@ impl GoyderFrontEnd {
         freq: &mut [f64],
         lag_im: &mut [f64],
     ) {
-        let (n_total, hop, nb) = (buffer.len(), self.hop, self.bands.len());
+        let (n_total, hop) = (buffer.len(), self.hop);
         let used = n_frames * hop;
         let fs = self.sample_rate_hz;
         let kernel = &mut self.kernel;
         kernel.clear();
-        // One frame's bands, then each to its band's run of frames.
-        let (mut row_e, mut row_re, mut row_im) = (vec![0.0; nb], vec![0.0; nb], vec![0.0; nb]);
+        // Each frame's bands straight to their runs of frames (the real parts of the lag
+        // products where the frequencies will be).
         let mut flush = |kernel: &mut Kernel, k: usize| {
-            kernel.take_frame(hop, &mut row_e, &mut row_re, &mut row_im);
-            for b in 0..nb {
-                energy[b * n_frames + k] = row_e[b];
-                freq[b * n_frames + k] = row_re[b];
-                lag_im[b * n_frames + k] = row_im[b];
-            }
+            let out = FrameOut {
+                energy: &mut *energy,
+                lag_re: &mut *freq,
+                lag_im: &mut *lag_im,
+                stride: n_frames,
+            };
+            kernel.take_frame(hop, k, out);
         };
         // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
         // samples), frame boundaries, and the start of the kept part (reversed mode).
