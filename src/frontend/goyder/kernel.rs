@@ -124,11 +124,15 @@ impl<const L: usize> Group<L> {
     /// 2Σ|z|²/hop and lag product Σ z·conj(z[m−1]) to `out` at `first + l·stride`.
     fn take_sums(&mut self, bands: usize, hop: usize, out: FrameOut<'_>, first: usize) {
         let s = std::mem::replace(&mut self.sums, [[0.0; L]; 6]);
-        for l in 0..bands.min(L) {
+        let energy: Lanes<L> = std::array::from_fn(|l| 2.0 * (s[0][l] + s[1][l]) / hop as f64);
+        let lag_re: Lanes<L> = std::array::from_fn(|l| s[2][l] + s[3][l]);
+        let lag_im: Lanes<L> = std::array::from_fn(|l| s[4][l] - s[5][l]);
+        let lanes = energy.iter().zip(&lag_re).zip(&lag_im).take(bands);
+        for (l, ((&e, &re), &im)) in lanes.enumerate() {
             let at = first + l * out.stride;
-            out.energy[at] = 2.0 * (s[0][l] + s[1][l]) / hop as f64;
-            out.lag_re[at] = s[2][l] + s[3][l];
-            out.lag_im[at] = s[4][l] - s[5][l];
+            out.energy[at] = e;
+            out.lag_re[at] = re;
+            out.lag_im[at] = im;
         }
     }
 
