@@ -171,24 +171,6 @@ impl<E: DecayEstimator> BandTrackers<E> {
         c.push(0.0);
     }
 
-    /// Appends `frames` entries to one band's running sum `c` (which holds its leading 0): the
-    /// energies of `active`, then the last frame repeated (a band no longer active leaves the
-    /// floor test neutral).
-    fn extend_sum(c: &mut Vec<f64>, active: &[f64], frames: usize) {
-        let mut last = c[c.len() - 1];
-        let mut before = c.len().checked_sub(2).map(|j| c[j]);
-        // From an iterator of known length: no capacity test per entry, which had the running
-        // values go through memory at every step.
-        c.extend((0..frames).map(|k| {
-            let e = match active.get(k) {
-                Some(&e) => e,
-                None => before.map_or(0.0, |p| last - p),
-            };
-            (before, last) = (Some(last), last + e);
-            last
-        }));
-    }
-
     /// Adds one frame to every band's running sum; a band no longer `active` (buffered banks:
     /// past its own end) repeats its last frame, which leaves the floor test neutral.
     fn add_to_sums(&mut self, energy: &[f64], active: impl Fn(usize) -> bool) {
@@ -197,7 +179,7 @@ impl<E: DecayEstimator> BandTrackers<E> {
                 Self::restart_sum(c);
             }
             let frame = [e];
-            Self::extend_sum(c, if active(b) { &frame } else { &[] }, 1);
+            super::end_scan::extend_sum(c, if active(b) { &frame } else { &[] }, 1);
         }
     }
 
@@ -247,24 +229,19 @@ impl<E: DecayEstimator> BandTrackers<E> {
         // by frame across the bands, the peaks and sums went through memory at every step.
         let mut all_low = vec![true; n_frames];
         let mut peaks = self.peak.clone();
-        let mut first_entry = vec![0; self.cumulative.len()];
+        let band = |b: usize| &energy[b * n_frames..b * n_frames + band_frames[b].min(n_frames)];
         for (b, peak) in peaks.iter_mut().enumerate() {
-            let band = &energy[b * n_frames..(b + 1) * n_frames];
-            let active = band_frames[b].min(n_frames);
-            let mut p = *peak;
-            for (low, &e) in all_low.iter_mut().zip(&band[..active]) {
-                p = p.max(e);
-                *low &= e <= p * self.end_factor;
-            }
-            *peak = p;
-            if let Some(c) = self.cumulative.get_mut(b) {
-                if c.is_empty() {
-                    Self::restart_sum(c);
-                }
-                first_entry[b] = c.len();
-                Self::extend_sum(c, &band[..active], n_frames);
-            }
+            *peak = super::end_scan::mark_low(&mut all_low, band(b), *peak, self.end_factor);
         }
+        let mut first_entry = vec![0; self.cumulative.len()];
+        for (c, first) in self.cumulative.iter_mut().zip(&mut first_entry) {
+            if c.is_empty() {
+                Self::restart_sum(c);
+            }
+            *first = c.len();
+        }
+        let actives: Vec<&[f64]> = (0..self.cumulative.len()).map(band).collect();
+        super::end_scan::extend_sums(&mut self.cumulative, &actives, n_frames);
         // Frame by frame: where the decay ends.
         let mut taken = n_frames;
         for (k, &low) in all_low.iter().enumerate() {
@@ -380,10 +357,13 @@ mod tests {
     use super::*;
     use crate::frontend::FrameSink;
 
+    /// Bands of the trackers under test: a group of four side by side and two more.
+    const NB: usize = 6;
+
     fn trackers(end_drop_db: f64, floor: Option<FloorEnd>) -> BandTrackers {
         let settings = EstimateSettings::default();
         BandTrackers::new(
-            (0..3)
+            (0..NB)
                 .map(|b| OnlineSchroeder::new(0.002, 100.0 * (b + 1) as f64, settings))
                 .collect(),
             end_drop_db,
@@ -416,7 +396,7 @@ mod tests {
         let mut energy = Vec::new();
         let mut freq = Vec::new();
         for k in 0..n {
-            for b in 0..3 {
+            for b in 0..NB {
                 let decay = (-(k as f64) * 0.05 * (b + 1) as f64).exp();
                 let noise = 1e-6 * (1.0 + ((k * 31 + b * 7) % 13) as f64);
                 // A NaN and a negative energy late in the bands that stop early (a NaN in
@@ -437,7 +417,12 @@ mod tests {
             (f64::INFINITY, floors[1]),
             (200.0, floors[1]),
         ] {
-            for band_frames in [[n, n, n], [n, 150, 60], [n, 250, 90], [0, n, 3]] {
+            for band_frames in [
+                [n, n, n, n, n, n],
+                [n, 150, 60, n, 700, 999],
+                [n, 250, 90, 400, n, 10],
+                [0, n, 3, n, 1, n],
+            ] {
                 for (already, coding) in [
                     (0usize, FrequencyCoding::Hz),
                     (5, FrequencyCoding::Hz),
@@ -459,8 +444,8 @@ mod tests {
                     // Some frames pushed one by one before the bulk.
                     for k in 0..already {
                         let f = Frame {
-                            energy: &energy[3 * k..3 * k + 3],
-                            frequency_hz: &freq[3 * k..3 * k + 3],
+                            energy: &energy[NB * k..NB * (k + 1)],
+                            frequency_hz: &freq[NB * k..NB * (k + 1)],
                             active: None,
                         };
                         bulk.push(f);
@@ -468,8 +453,8 @@ mod tests {
                     }
                     // The rest, band by band (the layout of `FrameSink::frames`).
                     let band_major = |v: &[f64]| -> Vec<f64> {
-                        (0..3)
-                            .flat_map(|b| (already..n).map(move |k| v[3 * k + b]))
+                        (0..NB)
+                            .flat_map(|b| (already..n).map(move |k| v[NB * k + b]))
                             .collect()
                     };
                     // The bulk's frequencies coded as a buffered bank may hand them over.

@@ -17,6 +17,7 @@ use std::sync::Arc;
 
 mod bands;
 mod channel;
+mod end_scan;
 mod finishing;
 mod order;
 pub mod schema;
