@@ -134,7 +134,7 @@ mod tests {
                 1 => -1.0,
                 2 => 0.0,
                 _ => {
-                    let late = if k == len * 2 / 3 && seed % 3 == 0 {
+                    let late = if k == len * 2 / 3 && seed.is_multiple_of(3) {
                         50.0
                     } else {
                         1.0
