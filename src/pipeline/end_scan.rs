@@ -100,22 +100,18 @@ fn extend_side_by_side<const N: usize>(
         .min()
         .unwrap_or(0)
         .min(frames);
-    let mut last = [0.0; N];
-    let outs = {
-        let mut i = 0;
-        sums.map(|s| {
-            last[i] = s[s.len() - 1];
-            i += 1;
-            let from = s.len();
-            s.resize(from + common, 0.0);
-            &mut s[from..]
-        })
-    };
+    let mut last: [f64; N] = std::array::from_fn(|j| sums[j][sums[j].len() - 1]);
+    let mut outs = sums.map(|s| {
+        let from = s.len();
+        s.resize(from + common, 0.0);
+        &mut s[from..]
+    });
     let inputs = actives.map(|a| &a[..common]);
+    // Frame by frame, every band's step; the running values stay in registers.
     for k in 0..common {
-        for j in 0..N {
-            last[j] += inputs[j][k];
-            outs[j][k] = last[j];
+        for ((out, input), last) in outs.iter_mut().zip(&inputs).zip(&mut last) {
+            *last += input[k];
+            out[k] = *last;
         }
     }
     common
