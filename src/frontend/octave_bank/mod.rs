@@ -15,11 +15,13 @@
 //! rule, per band). Without this, 43–78 % of the band energy at 125 Hz–2 kHz of a measured
 //! living-room RIR was discarded.
 
+mod frame_values;
 mod kernel;
 
 use biquad::Coefficients;
 use rustfft::num_complex::Complex;
 
+use frame_values::{cosines_in_place, frame_values, smoothed_values};
 use kernel::{FrameSums, Kernel, Sample};
 
 use super::buffered::{DecayBuffer, DecaySamples, FilterDirection};
@@ -129,14 +131,16 @@ pub fn butterworth_bandpass(
 const FRAMES_PER_CHUNK: usize = 1024;
 
 thread_local! {
-    /// The kernel's frame sums (scratch), one per thread for every channel it analyses: one
-    /// per front end faulted in 150 kB per channel of a reversed bank.
-    static FRAME_SUMS: std::cell::RefCell<Vec<FrameSums>> = const { std::cell::RefCell::new(Vec::new()) };
+    /// The kernel's frame sums, and a chunk's smoothed powers (scratch), one per thread for
+    /// every channel it analyses: one per front end faulted in 150 kB per channel of a
+    /// reversed bank.
+    static FRAME_SUMS: std::cell::RefCell<(Vec<FrameSums>, Vec<f64>)> =
+        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
-/// Runs `f` with this thread's frame-sum scratch.
-fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>) -> R) -> R {
-    super::with_thread_scratch(&FRAME_SUMS, f)
+/// Runs `f` with this thread's frame-sum and smoothed-power scratch.
+fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>, &mut Vec<f64>) -> R) -> R {
+    super::with_thread_scratch(&FRAME_SUMS, |(sums, power)| f(sums, power))
 }
 
 /// The octave filter bank front end; one instance per channel.
@@ -275,11 +279,13 @@ impl OctaveBankFrontEnd {
         let energy_scale = self.energy_scale();
         self.clear_filters();
         super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
-            with_frame_sums(|sums| {
+            with_frame_sums(|sums, power| {
                 // Through the transient zone without keeping the output, then frame by frame
                 // from the last to the first, a bounded chunk of frames at a time.
                 sums.clear();
                 self.kernel.filter(&buffer[used..], true, None, sums);
+                power.clear();
+                power.resize(nb * FRAMES_PER_CHUNK, 0.0);
                 let mut k_end = n_frames;
                 while k_end > 0 {
                     let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
@@ -289,17 +295,28 @@ impl OctaveBankFrontEnd {
                         .filter(chunk, true, Some((self.hop, self.hop)), sums);
                     for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
                         let k = k_end - 1 - j;
-                        // Straight into the band-major arrays (frame k of every band).
+                        // Straight into the band-major arrays (frame k of every band): the
+                        // energy, and the smoothed sums (the cross sum where the cosine goes).
                         for (b, (sm, (&alpha, sum))) in self
                             .smooth
                             .iter_mut()
                             .zip(self.smooth_factor.iter().zip(frame))
                             .enumerate()
                         {
-                            let (e, c) = frame_values(sm, alpha, sum, energy_scale);
+                            let (e, [cross, pw]) = smoothed_values(sm, alpha, sum, energy_scale);
                             frames[b * n_frames + k] = e;
-                            freqs[b * n_frames + k] = c;
+                            freqs[b * n_frames + k] = cross;
+                            power[b * FRAMES_PER_CHUNK + k - k_start] = pw;
                         }
+                    }
+                    // The chunk's cosines, a band's frames at a time (vectorised divisions).
+                    for b in 0..nb {
+                        let at = b * n_frames;
+                        cosines_in_place(
+                            self.isa,
+                            &mut freqs[at + k_start..at + k_end],
+                            &power[b * FRAMES_PER_CHUNK..],
+                        );
                     }
                     k_end = k_start;
                 }
@@ -350,26 +367,6 @@ impl OctaveBankFrontEnd {
     }
 }
 
-/// One band's frame from its sums: the mean energy per sample, and the cosine of its frequency
-/// (cos 2πf/fs from the smoothed sums `sm`, updated here; NaN where unknown).
-#[inline(always)]
-fn frame_values(
-    sm: &mut [f64; 2],
-    alpha: f64,
-    &[energy, cross, power]: &FrameSums,
-    scale: CountDivisor,
-) -> (f64, f64) {
-    sm[0] = alpha * sm[0] + cross;
-    sm[1] = alpha * sm[1] + power;
-    let cosine = if sm[1] > 0.0 {
-        (0.5 * sm[0] / sm[1]).clamp(-1.0, 1.0)
-    } else {
-        f64::NAN
-    };
-    let mean = scale.divide(energy);
-    (mean, cosine)
-}
-
 impl FrontEnd for OctaveBankFrontEnd {
     fn memory_bytes(&self) -> usize {
         let buffer = match self.settings.direction {
@@ -390,7 +387,7 @@ impl FrontEnd for OctaveBankFrontEnd {
 
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         match self.settings.direction {
-            FilterDirection::Forward => with_frame_sums(|sums| {
+            FilterDirection::Forward => with_frame_sums(|sums, _| {
                 sums.clear();
                 let first = self.hop - self.in_frame;
                 self.kernel
