@@ -14,7 +14,7 @@
 /// returns the peak after the band's last frame. The same bits as, frame by frame,
 /// `p = p.max(e); *low &= e <= p * end_factor`.
 pub(super) fn mark_low(all_low: &mut [bool], band: &[f64], peak: f64, end_factor: f64) -> f64 {
-    let last = peak.max(max_of(band));
+    let last = peak.max(crate::decay::max_ignoring_nan(band));
     // Frame by frame while the running peak is below its final value; from the frame where
     // it reaches it on, it stays there (no later frame is larger; a NaN one leaves it).
     let mut p = peak;
@@ -29,23 +29,6 @@ pub(super) fn mark_low(all_low: &mut [bool], band: &[f64], peak: f64, end_factor
         *low &= e <= threshold;
     }
     p
-}
-
-/// The largest value of `values`, NaN ignored; −∞ when there is none.
-fn max_of(values: &[f64]) -> f64 {
-    const LANES: usize = 8;
-    let mut lanes = [f64::NEG_INFINITY; LANES];
-    let chunks = values.chunks_exact(LANES);
-    let rest = chunks.remainder();
-    for chunk in chunks {
-        for (m, &v) in lanes.iter_mut().zip(chunk) {
-            // A comparison, not `f64::max`, so that the lanes vectorise; NaN compares false.
-            *m = if v > *m { v } else { *m };
-        }
-    }
-    rest.iter()
-        .chain(&lanes)
-        .fold(f64::NEG_INFINITY, |m, &v| if v > m { v } else { m })
 }
 
 /// Appends `frames` entries to one band's running sum `sum` (which holds its leading 0): the
