@@ -42,11 +42,7 @@ pub fn first_restart(energies: &[f64], rise_frames: usize) -> Option<usize> {
         // (tens of frames with the Goyder bank's slow rise) is folded.
         if e >= test.level
             && e > test.jump * counted(energies[k - g])
-            && e > test.jump
-                * energies[k - 2 * g..=k - g]
-                    .iter()
-                    .cloned()
-                    .fold(0.0, f64::max)
+            && e > test.jump * super::peak_or_zero(&energies[k - 2 * g..=k - g])
         {
             return Some(k);
         }
