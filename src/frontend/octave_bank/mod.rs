@@ -21,7 +21,7 @@ mod kernel;
 use biquad::Coefficients;
 use rustfft::num_complex::Complex;
 
-use frame_values::{cosines_in_place, frame_values, smoothed_values};
+use frame_values::{frame_values, frames_from_sums, BandFrames};
 use kernel::{FrameSums, Kernel, Sample};
 
 use super::buffered::{DecayBuffer, DecaySamples, FilterDirection};
@@ -131,16 +131,14 @@ pub fn butterworth_bandpass(
 const FRAMES_PER_CHUNK: usize = 1024;
 
 thread_local! {
-    /// The kernel's frame sums, and a chunk's smoothed powers (scratch), one per thread for
-    /// every channel it analyses: one per front end faulted in 150 kB per channel of a
-    /// reversed bank.
-    static FRAME_SUMS: std::cell::RefCell<(Vec<FrameSums>, Vec<f64>)> =
-        const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
+    /// The kernel's frame sums (scratch), one per thread for every channel it analyses: one
+    /// per front end faulted in 150 kB per channel of a reversed bank.
+    static FRAME_SUMS: std::cell::RefCell<Vec<FrameSums>> = const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// Runs `f` with this thread's frame-sum and smoothed-power scratch.
-fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>, &mut Vec<f64>) -> R) -> R {
-    super::with_thread_scratch(&FRAME_SUMS, |(sums, power)| f(sums, power))
+/// Runs `f` with this thread's frame-sum scratch.
+fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>) -> R) -> R {
+    super::with_thread_scratch(&FRAME_SUMS, f)
 }
 
 /// The octave filter bank front end; one instance per channel.
@@ -279,13 +277,16 @@ impl OctaveBankFrontEnd {
         let energy_scale = self.energy_scale();
         self.clear_filters();
         super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
-            with_frame_sums(|sums, power| {
+            with_frame_sums(|sums| {
                 // Through the transient zone without keeping the output, then frame by frame
                 // from the last to the first, a bounded chunk of frames at a time.
                 sums.clear();
                 self.kernel.filter(&buffer[used..], true, None, sums);
-                power.clear();
-                power.resize(nb * FRAMES_PER_CHUNK, 0.0);
+                let mut out = BandFrames {
+                    energy: frames,
+                    cosine: freqs,
+                    n_frames,
+                };
                 let mut k_end = n_frames;
                 while k_end > 0 {
                     let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
@@ -293,31 +294,16 @@ impl OctaveBankFrontEnd {
                     let chunk = &buffer[k_start * self.hop..k_end * self.hop];
                     self.kernel
                         .filter(chunk, true, Some((self.hop, self.hop)), sums);
-                    for (j, frame) in sums.chunks_exact(nb.max(1)).enumerate() {
-                        let k = k_end - 1 - j;
-                        // Straight into the band-major arrays (frame k of every band): the
-                        // energy, and the smoothed sums (the cross sum where the cosine goes).
-                        for (b, (sm, (&alpha, sum))) in self
-                            .smooth
-                            .iter_mut()
-                            .zip(self.smooth_factor.iter().zip(frame))
-                            .enumerate()
-                        {
-                            let (e, [cross, pw]) = smoothed_values(sm, alpha, sum, energy_scale);
-                            frames[b * n_frames + k] = e;
-                            freqs[b * n_frames + k] = cross;
-                            power[b * FRAMES_PER_CHUNK + k - k_start] = pw;
-                        }
-                    }
-                    // The chunk's cosines, a band's frames at a time (vectorised divisions).
-                    for b in 0..nb {
-                        let at = b * n_frames;
-                        cosines_in_place(
-                            self.isa,
-                            &mut freqs[at + k_start..at + k_end],
-                            &power[b * FRAMES_PER_CHUNK..],
-                        );
-                    }
+                    // Straight into the band-major arrays.
+                    frames_from_sums(
+                        self.isa,
+                        sums,
+                        &mut self.smooth,
+                        &self.smooth_factor,
+                        energy_scale,
+                        &mut out,
+                        k_end,
+                    );
                     k_end = k_start;
                 }
             });
@@ -387,7 +373,7 @@ impl FrontEnd for OctaveBankFrontEnd {
 
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         match self.settings.direction {
-            FilterDirection::Forward => with_frame_sums(|sums, _| {
+            FilterDirection::Forward => with_frame_sums(|sums| {
                 sums.clear();
                 let first = self.hop - self.in_frame;
                 self.kernel
