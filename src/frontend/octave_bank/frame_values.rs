@@ -55,68 +55,55 @@ pub(super) struct BandFrames<'a> {
     pub(super) n_frames: usize,
 }
 
-/// [`frame_values`] for a chunk of a reversed decay: `sums` holds frames in processing order
-/// (`nb` bands each), frame j being frame `k_end − 1 − j` of the band-major arrays `out`; the
-/// smoothed sums `smooth` (per band, with factors `alpha`) carry over from chunk to chunk.
-/// Bit for bit one `frame_values` per band and frame; here up to eight bands advance in vector
-/// lanes, their smoothed sums in registers (band by band through memory, with a division per
-/// band and frame, this was 6–8 % of an octave-bank run at 4096 Hz).
-#[allow(clippy::too_many_arguments)]
-pub(super) fn frames_from_sums(
-    isa: Isa,
-    sums: &[FrameSums],
-    smooth: &mut [[f64; 2]],
-    alpha: &[f64],
-    scale: CountDivisor,
-    out: &mut BandFrames<'_>,
-    k_end: usize,
-) {
+/// One chunk of a reversed decay for [`frames_from_sums`]: `sums` holds frames in processing
+/// order (`smooth.len()` bands each), frame j being frame `k_end − 1 − j` of the band-major
+/// arrays; the smoothed sums `smooth` (per band, with factors `alpha`) carry over from chunk
+/// to chunk.
+pub(super) struct Chunk<'a> {
+    pub(super) sums: &'a [FrameSums],
+    pub(super) smooth: &'a mut [[f64; 2]],
+    pub(super) alpha: &'a [f64],
+    pub(super) scale: CountDivisor,
+    pub(super) k_end: usize,
+}
+
+/// [`frame_values`] for every band and frame of a chunk, into `out`: bit for bit one
+/// `frame_values` per band and frame; here up to eight bands advance in vector lanes, their
+/// smoothed sums in registers (band by band through memory, with a division per band and
+/// frame, this was 6–8 % of an octave-bank run at 4096 Hz).
+pub(super) fn frames_from_sums(isa: Isa, chunk: Chunk<'_>, out: &mut BandFrames<'_>) {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
-    unsafe fn wide(
-        sums: &[FrameSums],
-        smooth: &mut [[f64; 2]],
-        alpha: &[f64],
-        scale: CountDivisor,
-        out: &mut BandFrames<'_>,
-        k_end: usize,
-    ) {
-        in_lanes::<8>(sums, smooth, alpha, scale, out, k_end)
+    unsafe fn wide(chunk: Chunk<'_>, out: &mut BandFrames<'_>) {
+        in_lanes::<8>(chunk, out)
     }
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    unsafe fn narrow(
-        sums: &[FrameSums],
-        smooth: &mut [[f64; 2]],
-        alpha: &[f64],
-        scale: CountDivisor,
-        out: &mut BandFrames<'_>,
-        k_end: usize,
-    ) {
-        in_lanes::<4>(sums, smooth, alpha, scale, out, k_end)
+    unsafe fn narrow(chunk: Chunk<'_>, out: &mut BandFrames<'_>) {
+        in_lanes::<4>(chunk, out)
     }
     match isa {
         // SAFETY (both): `Isa::detect` found the feature on this CPU. No fused operations:
         // the same results as the portable path.
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx512 => unsafe { wide(sums, smooth, alpha, scale, out, k_end) },
+        Isa::Avx512 => unsafe { wide(chunk, out) },
         #[cfg(target_arch = "x86_64")]
-        Isa::Avx2Fma => unsafe { narrow(sums, smooth, alpha, scale, out, k_end) },
-        Isa::Generic => in_lanes::<4>(sums, smooth, alpha, scale, out, k_end),
+        Isa::Avx2Fma => unsafe { narrow(chunk, out) },
+        Isa::Generic => in_lanes::<4>(chunk, out),
     }
 }
 
 /// [`frames_from_sums`] with `L` bands per group of lanes (a group's bands over every frame of
 /// the chunk, then the next group).
 #[inline(always)]
-fn in_lanes<const L: usize>(
-    sums: &[FrameSums],
-    smooth: &mut [[f64; 2]],
-    alpha: &[f64],
-    scale: CountDivisor,
-    out: &mut BandFrames<'_>,
-    k_end: usize,
-) {
+fn in_lanes<const L: usize>(chunk: Chunk<'_>, out: &mut BandFrames<'_>) {
+    let Chunk {
+        sums,
+        smooth,
+        alpha,
+        scale,
+        k_end,
+    } = chunk;
     let nb = smooth.len();
     if nb == 0 {
         return;
@@ -204,7 +191,14 @@ mod tests {
                     for len in [1, 29, 40] {
                         let j0 = n_frames - k_end;
                         let chunk = &sums[j0 * nb..(j0 + len) * nb];
-                        frames_from_sums(isa, chunk, &mut smooth, &alpha, scale, &mut out, k_end);
+                        let chunk = Chunk {
+                            sums: chunk,
+                            smooth: &mut smooth,
+                            alpha: &alpha,
+                            scale,
+                            k_end,
+                        };
+                        frames_from_sums(isa, chunk, &mut out);
                         k_end -= len;
                     }
                     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();

@@ -21,7 +21,7 @@ mod kernel;
 use biquad::Coefficients;
 use rustfft::num_complex::Complex;
 
-use frame_values::{frame_values, frames_from_sums, BandFrames};
+use frame_values::{frame_values, frames_from_sums, BandFrames, Chunk};
 use kernel::{FrameSums, Kernel, Sample};
 
 use super::buffered::{DecayBuffer, DecaySamples, FilterDirection};
@@ -295,15 +295,14 @@ impl OctaveBankFrontEnd {
                     self.kernel
                         .filter(chunk, true, Some((self.hop, self.hop)), sums);
                     // Straight into the band-major arrays.
-                    frames_from_sums(
-                        self.isa,
+                    let chunk = Chunk {
                         sums,
-                        &mut self.smooth,
-                        &self.smooth_factor,
-                        energy_scale,
-                        &mut out,
+                        smooth: &mut self.smooth,
+                        alpha: &self.smooth_factor,
+                        scale: energy_scale,
                         k_end,
-                    );
+                    };
+                    frames_from_sums(self.isa, chunk, &mut out);
                     k_end = k_start;
                 }
             });
