@@ -70,7 +70,7 @@ pub(super) struct Chunk<'a> {
 /// [`frame_values`] for every band and frame of a chunk, into `out`: bit for bit one
 /// `frame_values` per band and frame; here up to eight bands advance in vector lanes, their
 /// smoothed sums in registers (band by band through memory, with a division per band and
-/// frame, this was 6–8 % of an octave-bank run at 4096 Hz).
+/// frame, this was 6–7 % of an octave-bank run at 4096 Hz).
 pub(super) fn frames_from_sums(isa: Isa, chunk: Chunk<'_>, out: &mut BandFrames<'_>) {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f")]
