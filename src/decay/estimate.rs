@@ -8,9 +8,10 @@
 //! [`Flag`] says why. The check runs for every number (EDT, T20, T30) on its own range.
 
 use super::damping::damping_ratio;
-use super::lundeby::{compensated_edc, lundeby, FirstRegressionEnd, LundebySettings};
+use super::lundeby::{compensated_curve_into, lundeby, FirstRegressionEnd, LundebySettings};
 use super::range::EvaluationRange;
 use super::regression::{fit_line, LineFit};
+use super::schroeder::PooledCurve;
 use super::FrequencyCoding;
 
 pub use super::flags::Flag;
@@ -358,7 +359,7 @@ fn noise_compensated_curve(
     frame_period_s: f64,
     f_center_hz: f64,
     compensation: NoiseCompensation,
-) -> Option<Vec<f64>> {
+) -> Option<PooledCurve> {
     // pyrato's per-band block length (800/f + 10) ms, at least one frame; the robust variant
     // caps it at a fifth of the time the curve takes to fall 10 dB (Lundeby's own 5 blocks per
     // 10 dB): a 4 kHz structural mode with T60 = 25 ms fell 26 dB within pyrato's 10 ms block
@@ -381,10 +382,8 @@ fn noise_compensated_curve(
         let tenth = &energies[energies.len() - (energies.len() / 10).max(1)..];
         found.noise_energy = tenth.iter().sum::<f64>() / tenth.len() as f64;
     }
-    let curve: Vec<f64> = compensated_edc(energies, 1.0 / frame_period_s, &found, true)
-        .into_iter()
-        .map_while(|v| v)
-        .collect();
+    let mut curve = PooledCurve::with_capacity(energies.len());
+    compensated_curve_into(energies, 1.0 / frame_period_s, &found, true, &mut curve);
     (curve.len() >= 2).then_some(curve)
 }
 
@@ -426,7 +425,7 @@ pub fn estimate_from_coded_curve(
     let noise = noise_floor_pnr_db(energies);
     // With a noise floor, truncate at Lundeby's intersection time and add the missing tail.
     let mut noise_compensated = false;
-    let curve: Vec<f64> = match noise {
+    let compensated = match noise {
         Some(_) => match noise_compensated_curve(
             edc,
             energies,
@@ -436,13 +435,15 @@ pub fn estimate_from_coded_curve(
         ) {
             Some(c) => {
                 noise_compensated = true;
-                c
+                Some(c)
             }
             // A noise floor that Lundeby cannot place: no trustworthy curve.
             None => return DecayEstimate::failed(Flag::NoiseLimited),
         },
-        None => edc.to_vec(),
+        None => None,
     };
+    // The compensated curve, or the Schroeder curve as given.
+    let curve: &[f64] = compensated.as_deref().map_or(edc, |c| c.as_slice());
     if curve.is_empty() || curve[0] <= 0.0 {
         return DecayEstimate::failed(Flag::NoiseLimited);
     }
@@ -465,7 +466,7 @@ pub fn estimate_from_coded_curve(
         }
     });
     let mut levels_db = Vec::with_capacity(curve.len());
-    for &e in &curve {
+    for &e in curve {
         let l = level_db(e);
         levels_db.push(l);
         if l < deepest_db {

@@ -255,6 +255,25 @@ pub fn compensated_edc(
     found: &LundebyResult,
     subtract_noise: bool,
 ) -> Vec<Option<f64>> {
+    let mut curve = Vec::new();
+    compensated_curve_into(energy, rate_hz, found, subtract_noise, &mut curve);
+    let defined = curve.len();
+    curve
+        .into_iter()
+        .map(Some)
+        .chain(std::iter::repeat_n(None, energy.len() - defined))
+        .collect()
+}
+
+/// [`compensated_edc`]'s defined values (frames before the intersection index) into `out`
+/// (emptied first): the curve an estimate fits, without a value per frame for the rest.
+pub(crate) fn compensated_curve_into(
+    energy: &[f64],
+    rate_hz: f64,
+    found: &LundebyResult,
+    subtract_noise: bool,
+    out: &mut Vec<f64>,
+) {
     let n = if subtract_noise {
         found.noise_energy
     } else {
@@ -262,13 +281,13 @@ pub fn compensated_edc(
     };
     let i = ((found.intersection_time_s * rate_hz).round().max(0.0) as usize).min(energy.len());
     let tail = found.noise_energy * found.late_t60_s / (6.0 * std::f64::consts::LN_10) * rate_hz;
-    let mut out = vec![None; energy.len()];
+    out.clear();
+    out.resize(i, 0.0);
     let mut acc = tail;
     for k in (0..i).rev() {
         acc += energy[k] - n;
-        out[k] = Some(acc);
+        out[k] = acc;
     }
-    out
 }
 
 #[cfg(test)]

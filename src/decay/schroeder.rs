@@ -342,6 +342,48 @@ pub(crate) fn reserve_history(history: &mut Vec<f64>, additional: usize) {
     history.reserve(additional);
 }
 
+/// A per-decay curve in memory from this thread's pool of histories ([`reserve_history`]),
+/// given back when dropped. A fresh vector per band and decay came from `mmap` once it was
+/// above the allocator's threshold (a Goyder bank's 0.25 ms frames: 320 kB per 10 s band) and
+/// faulted its pages in again for every decay.
+pub(crate) struct PooledCurve(Vec<f64>);
+
+impl PooledCurve {
+    /// `len` zeros.
+    pub(crate) fn zeros(len: usize) -> Self {
+        let mut v = Vec::new();
+        reserve_history(&mut v, len);
+        v.resize(len, 0.0);
+        PooledCurve(v)
+    }
+
+    /// Empty, with room for `capacity` values.
+    pub(crate) fn with_capacity(capacity: usize) -> Self {
+        let mut v = Vec::new();
+        reserve_history(&mut v, capacity);
+        PooledCurve(v)
+    }
+}
+
+impl std::ops::Deref for PooledCurve {
+    type Target = Vec<f64>;
+    fn deref(&self) -> &Vec<f64> {
+        &self.0
+    }
+}
+
+impl std::ops::DerefMut for PooledCurve {
+    fn deref_mut(&mut self) -> &mut Vec<f64> {
+        &mut self.0
+    }
+}
+
+impl Drop for PooledCurve {
+    fn drop(&mut self) {
+        give_back_history(std::mem::take(&mut self.0));
+    }
+}
+
 /// The first frame of a band's decay proper: the first whose energy comes within
 /// [`DECAY_START_LEVEL_DB`] of the band's peak (0 for a band without energy).
 pub fn decay_start_frame(energies: &[f64]) -> usize {

@@ -7,7 +7,7 @@
 //! same order, the branch of [`CompensatedSum::add`] a lane-wise select, so the same bits), and
 //! whatever is left of the longer ones afterwards, band by band.
 
-use super::schroeder::CompensatedSum;
+use super::schroeder::{CompensatedSum, PooledCurve};
 use crate::frontend::simd::Isa;
 
 /// The instruction set of the lanes, detected once.
@@ -103,8 +103,8 @@ fn add_each_in<const L: usize>(sums: &mut [CompensatedSum], values: &[&[f64]]) {
 /// The backward compensated integral of each of `values`: `out[j][k]` is the value of the sum
 /// of `values[j][k..]` added from the last to the k-th, bit for bit as
 /// [`super::schroeder::OnlineSchroeder::edc`] computes it.
-pub(crate) fn backward_integrals(values: &[&[f64]]) -> Vec<Vec<f64>> {
-    let mut out: Vec<Vec<f64>> = values.iter().map(|v| vec![0.0; v.len()]).collect();
+pub(crate) fn backward_integrals(values: &[&[f64]]) -> Vec<PooledCurve> {
+    let mut out: Vec<PooledCurve> = values.iter().map(|v| PooledCurve::zeros(v.len())).collect();
     let mut outs: Vec<&mut [f64]> = out.iter_mut().map(|o| o.as_mut_slice()).collect();
     with_lanes!(backward_in, &mut outs => &mut [&mut [f64]], values);
     out
