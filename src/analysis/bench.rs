@@ -136,13 +136,18 @@ impl BenchInput {
 
     /// A fresh source over the samples.
     pub fn source(&self) -> Result<Box<dyn Source>> {
-        Ok(Box::new(RawSource::new(
-            Cursor::new(self.bytes.clone()),
-            "bench input",
-            self.format,
-            self.fs_hz,
-            self.channels,
-        )?))
+        let frame_bytes = (self.channels * self.format.bytes()).max(1);
+        // In memory, its length is known: the decays are laid out as for a file.
+        Ok(Box::new(
+            RawSource::new(
+                Cursor::new(self.bytes.clone()),
+                "bench input",
+                self.format,
+                self.fs_hz,
+                self.channels,
+            )?
+            .expecting_frames((self.bytes.len() / frame_bytes) as u64),
+        ))
     }
 }
 
@@ -259,6 +264,7 @@ pub fn bench_front_end(
         let options = RunOptions {
             threads: plan.threads,
             profile_stages,
+            ..Default::default()
         };
         let t0 = Instant::now();
         table.write_header()?;

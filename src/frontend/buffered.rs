@@ -20,10 +20,67 @@ pub enum FilterDirection {
 }
 
 /// Samples a buffer reserves when it first receives some (2 MiB of f64, address space only
-/// until written): a decay that grew by doubling was copied at every step, and the copies
-/// faulted in twice the memory it ended with (`memmove` and its page faults were 10 % of a
-/// 64-channel, 10 s octave-bank run at 4096 Hz).
+/// until written), unless it takes a slot of this thread's decay arena
+/// ([`super::decay_arena`]): a decay that grew by doubling was copied at every step, and the
+/// copies faulted in twice the memory it ended with (`memmove` and its page faults were 10 % of
+/// a 64-channel, 10 s octave-bank run at 4096 Hz).
 const RESERVED_SAMPLES: usize = 1 << 18;
+
+/// Single-precision samples: from the allocator, or a slot of this thread's decay arena (which
+/// moves its samples to the allocator if it fills up).
+#[derive(Debug)]
+pub(crate) enum F32Buf {
+    Heap(Vec<f32>),
+    Arena(super::decay_arena::Slot),
+}
+
+impl Clone for F32Buf {
+    /// A copy from the allocator (a slot is its owner's alone).
+    fn clone(&self) -> Self {
+        F32Buf::Heap(self.to_vec())
+    }
+}
+
+impl std::ops::Deref for F32Buf {
+    type Target = [f32];
+    fn deref(&self) -> &[f32] {
+        match self {
+            F32Buf::Heap(v) => v,
+            F32Buf::Arena(s) => s.as_slice(),
+        }
+    }
+}
+
+impl F32Buf {
+    fn clear(&mut self) {
+        match self {
+            F32Buf::Heap(v) => v.clear(),
+            F32Buf::Arena(s) => s.clear(),
+        }
+    }
+
+    fn capacity(&self) -> usize {
+        match self {
+            F32Buf::Heap(v) => v.capacity(),
+            F32Buf::Arena(s) => s.capacity(),
+        }
+    }
+
+    /// Appends `xs` rounded to f32.
+    fn extend_rounded(&mut self, xs: &[f64]) {
+        match self {
+            F32Buf::Heap(v) => v.extend(xs.iter().map(|&x| x as f32)),
+            F32Buf::Arena(s) => {
+                if !s.try_extend(xs) {
+                    let mut v = Vec::with_capacity(2 * (s.as_slice().len() + xs.len()));
+                    v.extend_from_slice(s.as_slice());
+                    v.extend(xs.iter().map(|&x| x as f32));
+                    *self = F32Buf::Heap(v);
+                }
+            }
+        }
+    }
+}
 
 /// A decay's samples as held: single precision while every sample so far is exactly an f32
 /// (recordings in f32, 16- and 24-bit PCM), double otherwise. Half the memory for the usual
@@ -31,14 +88,14 @@ const RESERVED_SAMPLES: usize = 1 << 18;
 #[derive(Clone, Debug)]
 pub(crate) enum DecaySamples {
     /// Every sample is exactly the f32 kept.
-    Single(Vec<f32>),
+    Single(F32Buf),
     /// Samples as given.
     Double(Vec<f64>),
 }
 
 impl Default for DecaySamples {
     fn default() -> Self {
-        DecaySamples::Single(Vec::new())
+        DecaySamples::Single(F32Buf::Heap(Vec::new()))
     }
 }
 
@@ -105,7 +162,7 @@ const EXACT_CHUNK: usize = 64;
 
 /// Appends the samples of `xs` as f32 up to the first one that is not exactly an f32; returns
 /// how many were appended.
-fn extend_while_exact(v: &mut Vec<f32>, xs: &[f64]) -> usize {
+fn extend_while_exact(v: &mut F32Buf, xs: &[f64]) -> usize {
     let is_exact = |x: f64| f64::from(x as f32) == x;
     let mut done = 0;
     for chunk in xs.chunks(EXACT_CHUNK) {
@@ -115,10 +172,10 @@ fn extend_while_exact(v: &mut Vec<f32>, xs: &[f64]) -> usize {
                 .iter()
                 .position(|&x| !is_exact(x))
                 .unwrap_or(chunk.len());
-            v.extend(chunk[..n].iter().map(|&x| x as f32));
+            v.extend_rounded(&chunk[..n]);
             return done + n;
         }
-        v.extend(chunk.iter().map(|&x| x as f32));
+        v.extend_rounded(chunk);
         done += chunk.len();
     }
     done
@@ -129,15 +186,24 @@ fn extend_while_exact(v: &mut Vec<f32>, xs: &[f64]) -> usize {
 pub(crate) struct DecayBuffer {
     samples: DecaySamples,
     capacity: usize,
+    /// Samples a decay holds before the input's own (a pre-roll): sizes an arena slot.
+    lead: usize,
     overflowed: bool,
 }
 
 impl DecayBuffer {
     /// An empty buffer that holds at most `capacity` samples.
     pub(crate) fn new(capacity: usize) -> Self {
+        Self::with_lead(capacity, 0)
+    }
+
+    /// [`DecayBuffer::new`] for decays that start with `lead` samples from before the input's
+    /// own (see [`DecayBuffer::start_with_pre_roll`]).
+    pub(crate) fn with_lead(capacity: usize, lead: usize) -> Self {
         DecayBuffer {
             samples: DecaySamples::default(),
             capacity,
+            lead,
             overflowed: false,
         }
     }
@@ -164,7 +230,12 @@ impl DecayBuffer {
         if self.samples.capacity() == 0 {
             // Reserved the first time samples come (see RESERVED_SAMPLES).
             match &mut self.samples {
-                DecaySamples::Single(v) => v.reserve_exact(reserve),
+                DecaySamples::Single(v) => {
+                    *v = match super::decay_arena::take_slot(self.lead, self.capacity) {
+                        Some(slot) => F32Buf::Arena(slot),
+                        None => F32Buf::Heap(Vec::with_capacity(reserve)),
+                    }
+                }
                 DecaySamples::Double(v) => v.reserve_exact(reserve),
             }
         }
@@ -290,5 +361,41 @@ mod tests {
         assert_eq!(taken.with_f64(|s| bits(s)), bits(&exact));
         b.give_back(taken);
         assert_eq!(b.len(), 0);
+    }
+
+    /// A decay in an arena slot keeps every sample, in order, when it outgrows its slot (moved
+    /// to the allocator) and when a sample that is not an f32 arrives (switched to f64); the
+    /// same as without an arena.
+    #[test]
+    fn a_slot_that_fills_up_or_meets_a_double_loses_nothing() {
+        let frames = 600_000;
+        let samples: Vec<f64> = (0..frames + 50_000)
+            .map(|k| (k % 977) as f64 * 0.25)
+            .collect();
+        let mut with_double = samples.clone();
+        with_double[1000] = 0.1; // not exactly an f32, while in the slot
+        for (case, input) in [("outgrows", &samples), ("double", &with_double)] {
+            let plain = {
+                let mut b = DecayBuffer::with_lead(usize::MAX, 3);
+                b.start_with_pre_roll(&[1.0, 2.0], 3);
+                input.chunks(4096).for_each(|c| b.push(c));
+                held(&b)
+            };
+            let _arena = super::super::decay_arena::install(1, Some(frames));
+            let mut b = DecayBuffer::with_lead(usize::MAX, 3);
+            b.start_with_pre_roll(&[1.0, 2.0], 3);
+            assert!(
+                !cfg!(target_os = "linux")
+                    || matches!(b.samples, DecaySamples::Single(F32Buf::Arena(_))),
+                "{case}: the decay starts in a slot"
+            );
+            input.chunks(4096).for_each(|c| b.push(c));
+            assert_eq!(held(&b), plain, "{case}");
+            assert_eq!(plain.len(), 3 + input.len());
+            assert!(
+                !matches!(b.samples, DecaySamples::Single(F32Buf::Arena(_))),
+                "{case}"
+            );
+        }
     }
 }

@@ -8,6 +8,7 @@
 pub mod auto_bands;
 pub mod bands;
 pub mod buffered;
+pub(crate) mod decay_arena;
 mod gain_memo;
 pub mod goyder;
 mod hann_gain;

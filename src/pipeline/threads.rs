@@ -35,6 +35,9 @@ pub struct RunOptions {
     /// Split the analysis time into segmentation, front end and estimator
     /// ([`StageTimes`]; costs a clock read per frame).
     pub profile_stages: bool,
+    /// Buffered decays always from the allocator, never from a worker's huge-page arena
+    /// ([`crate::frontend::decay_arena`]; for comparisons).
+    pub plain_decay_buffers: bool,
 }
 
 /// Blocks alive at once at most: each worker's queue (4), the one it works on, the one read.
@@ -143,6 +146,9 @@ pub fn run_with(
     // Memory, before anything proportional to the channel count is allocated: one front end
     // tells its size, the analyzers' buffers are known, and blocks are shared by the workers.
     let first = factory()?;
+    let input_frames = source
+        .expected_frames()
+        .and_then(|n| usize::try_from(n).ok());
     // A decay's frame history: the input's length when known, capped by the longest decay.
     let decay_s = source
         .duration_frames()
@@ -193,7 +199,13 @@ pub fn run_with(
             let (tx, rx) = bounded::<ToWorker>(4);
             worker_txs.push(tx);
             let row_tx = row_tx.clone();
-            handles.push(scope.spawn(move || worker(group, rx, row_tx, finishing)));
+            let input_frames = input_frames.filter(|_| !options.plain_decay_buffers);
+            handles.push(scope.spawn(move || {
+                // Decay buffers of this worker's channels on huge pages, where the length is
+                // known.
+                let _arena = crate::frontend::decay_arena::install(group.range.len(), input_frames);
+                worker(group, rx, row_tx, finishing)
+            }));
         }
         drop(row_tx);
         let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
@@ -408,5 +420,54 @@ mod tests {
             }
         }
         assert_eq!(channel_shares(64, 2), vec![0..32, 32..64]);
+    }
+
+    /// Decay buffers from the workers' huge-page arenas give the rows the allocator's give,
+    /// bit for bit, for both buffering banks on one and two workers; and the arenas were used.
+    #[test]
+    fn decays_in_arenas_give_the_same_rows() {
+        use crate::analysis::bench::BenchInput;
+        use crate::plan::{BandLayout, BandSpec, FrontEndKind, FrontEndSpec};
+        use std::sync::atomic::Ordering;
+        // 32 channels × 10 s at 4096 Hz: 2.6 MB of decays per worker of two, enough for one.
+        let input = BenchInput::synthetic(32, 4096.0, 10.0).unwrap();
+        let bands = BandLayout {
+            specs: vec!["octave".parse::<BandSpec>().unwrap()],
+            ..Default::default()
+        }
+        .resolve(input.fs_hz, None)
+        .unwrap()
+        .bands;
+        for kind in [FrontEndKind::Octave, FrontEndKind::Goyder] {
+            let factory = FrontEndSpec::default()
+                .with_kind(kind)
+                .factory(input.fs_hz, bands.clone())
+                .unwrap();
+            let rows = |threads: usize, plain_decay_buffers: bool| {
+                let options = super::RunOptions {
+                    threads: Some(threads),
+                    plain_decay_buffers,
+                    ..Default::default()
+                };
+                let mut out = Vec::new();
+                let config = crate::pipeline::AnalysisConfig::default();
+                super::run_with(input.source().unwrap(), &factory, &config, options, |r| {
+                    out.extend_from_slice(r);
+                    Ok(())
+                })
+                .unwrap();
+                out
+            };
+            let plain = rows(2, true);
+            assert_eq!(plain.len(), 32 * bands.len(), "{kind:?}");
+            for threads in [1, 2] {
+                let before = crate::frontend::decay_arena::SLOTS_TAKEN.load(Ordering::Relaxed);
+                assert_eq!(rows(threads, false), plain, "{kind:?}, {threads} threads");
+                let taken = crate::frontend::decay_arena::SLOTS_TAKEN.load(Ordering::Relaxed);
+                if cfg!(target_os = "linux") {
+                    assert!(taken - before >= 32, "{kind:?}: {} slots", taken - before);
+                }
+            }
+        }
     }
 }

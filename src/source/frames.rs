@@ -289,6 +289,15 @@ impl<R: Read> FrameReader<R> {
         self
     }
 
+    /// Whole sample frames the mapped input holds in all (at most what a header announced);
+    /// `None` when the input is read as a stream.
+    pub(crate) fn mapped_frames(&self) -> Option<u64> {
+        let (mapped, _) = self.mapped.as_ref()?;
+        let frame_bytes = (self.channels * self.codec.bytes()).max(1) as u64;
+        let bytes = mapped.bytes().len() as u64;
+        Some(self.announced_bytes.map_or(bytes, |a| a.min(bytes)) / frame_bytes)
+    }
+
     /// Whether the input is decoded from a mapped file.
     #[cfg(test)]
     pub(crate) fn is_mapped(&self) -> bool {

@@ -154,6 +154,13 @@ pub trait Source: Send {
     fn duration_frames(&self) -> Option<u64> {
         None
     }
+
+    /// Sample frames the input is expected to hold, for laying out memory only (never checked
+    /// against anything): [`Source::duration_frames`], or, for a raw file read through a
+    /// mapping, its size.
+    fn expected_frames(&self) -> Option<u64> {
+        self.duration_frames()
+    }
 }
 
 // Implementations. Every source keeps the same error contract: all complete frames are delivered

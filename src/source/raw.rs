@@ -77,6 +77,8 @@ pub(crate) fn check_fs(what: &str, fs_hz: f64) -> Result<f64, SourceError> {
 pub struct RawSource<R: Read + Send> {
     info: SignalInfo,
     frames: FrameReader<R>,
+    /// Frames the caller says the input holds ([`RawSource::expecting_frames`]).
+    expected: Option<u64>,
 }
 
 /// Bytes a channel costs a source before any sample: its name and its place in the decoder.
@@ -115,6 +117,13 @@ impl<R: Read + Send> RawSource<R> {
             .ok()
             .and_then(|fd| super::mapped::MappedBytes::rest_of(&std::fs::File::from(fd)));
         Self::with_frames(file, mapped, what.into(), format, fs_hz, channels)
+    }
+
+    /// This source, announcing that its input holds `frames` sample frames (an input in
+    /// memory): used to lay out memory only ([`Source::expected_frames`]), never checked.
+    pub fn expecting_frames(mut self, frames: u64) -> Self {
+        self.expected = Some(frames);
+        self
     }
 
     /// Without memory mapping: [`RawSource::new`].
@@ -165,6 +174,7 @@ impl<R: Read + Send> RawSource<R> {
                     None => frames,
                 }
             },
+            expected: None,
         })
     }
 }
@@ -184,6 +194,12 @@ impl<R: Read + Send> Source for RawSource<R> {
         out: &mut super::encoded::EncodedFrames,
     ) -> Option<Result<bool, SourceError>> {
         Some(self.frames.read_encoded_block(max_frames, out))
+    }
+
+    /// What the caller announced, or a mapped file's size in frames (no header states it, so
+    /// it is no duration).
+    fn expected_frames(&self) -> Option<u64> {
+        self.expected.or_else(|| self.frames.mapped_frames())
     }
 }
 

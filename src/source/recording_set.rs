@@ -377,6 +377,10 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
             self.inner.duration_frames()
         }
 
+        fn expected_frames(&self) -> Option<u64> {
+            self.inner.expected_frames()
+        }
+
         fn info(&self) -> &super::SignalInfo {
             &self.info
         }

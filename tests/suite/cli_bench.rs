@@ -100,7 +100,7 @@ fn threads_and_profiling_do_not_change_the_results() {
             kind,
             RunOptions {
                 threads: Some(1),
-                profile_stages: false,
+                ..Default::default()
             },
         );
         let two = rows(
@@ -109,6 +109,7 @@ fn threads_and_profiling_do_not_change_the_results() {
             RunOptions {
                 threads: Some(2),
                 profile_stages: true,
+                ..Default::default()
             },
         );
         assert_eq!(one.len(), 5 * 6, "{kind:?}");

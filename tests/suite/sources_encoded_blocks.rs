@@ -73,7 +73,7 @@ fn analyse(source: Box<dyn Source>, threads: usize) -> (Vec<ResultRow>, Option<S
     };
     let options = RunOptions {
         threads: Some(threads),
-        profile_stages: false,
+        ..Default::default()
     };
     let mut rows = Vec::new();
     let summary = run_with(source, &factory, &config, options, |r| {

@@ -243,7 +243,7 @@ impl OctaveBankFrontEnd {
             band_cut_samples,
             pre_roll,
             max_samples,
-            buffer: DecayBuffer::new(max_samples + pre_roll),
+            buffer: DecayBuffer::with_lead(max_samples + pre_roll, pre_roll),
             in_frame: 0,
             energy: vec![0.0; nb],
             freq: vec![f64::NAN; nb],
