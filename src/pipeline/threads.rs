@@ -36,7 +36,7 @@ pub struct RunOptions {
     /// ([`StageTimes`]; costs a clock read per frame).
     pub profile_stages: bool,
     /// Buffered decays always from the allocator, never from a worker's huge-page arena
-    /// ([`crate::frontend::decay_arena`]; for comparisons).
+    /// (`frontend/decay_arena.rs`; for comparisons).
     pub plain_decay_buffers: bool,
 }
 
