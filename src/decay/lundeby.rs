@@ -246,28 +246,12 @@ pub fn lundeby(
     })
 }
 
-/// The Lundeby-compensated Schroeder curve of `energy`: Σ_{k ≤ m < i} (e_m − n) + C up to the
-/// intersection index i, with C = N · T_late / (6 ln 10) · rate, and n = N when `subtract_noise`
-/// (Chu + Lundeby, Guski & Vorländer 2014) else 0. Values from i on are `None`.
-pub fn compensated_edc(
-    energy: &[f64],
-    rate_hz: f64,
-    found: &LundebyResult,
-    subtract_noise: bool,
-) -> Vec<Option<f64>> {
-    let mut curve = Vec::new();
-    compensated_curve_into(energy, rate_hz, found, subtract_noise, &mut curve);
-    let defined = curve.len();
-    curve
-        .into_iter()
-        .map(Some)
-        .chain(std::iter::repeat_n(None, energy.len() - defined))
-        .collect()
-}
-
-/// [`compensated_edc`]'s defined values (frames before the intersection index) into `out`
-/// (emptied first): the curve an estimate fits, without a value per frame for the rest.
-pub(crate) fn compensated_curve_into(
+/// The Lundeby-compensated Schroeder curve of `energy` into `out` (emptied first):
+/// Σ_{k ≤ m < i} (e_m − n) + C for every frame k before the intersection index i (the curve
+/// ends there), with C = N · T_late / (6 ln 10) · rate, and n = N when `subtract_noise`
+/// (Chu + Lundeby, Guski & Vorländer 2014) else 0. Into a caller's vector, so that a decay's
+/// curve can reuse memory.
+pub fn compensated_curve_into(
     energy: &[f64],
     rate_hz: f64,
     found: &LundebyResult,
