@@ -22,7 +22,14 @@ pub(super) struct FinishJob {
     pub(super) crashed: bool,
 }
 
-/// The channels whose input ended, finished by whichever worker is free (see the module).
+/// The channels whose input ended, finished by whichever worker is free (see the module),
+/// lowest channel first.
+///
+/// Rows go out in channel order, so a channel's rows wait for every lower channel's. Taken in
+/// the order the workers happened to deposit them (the second half's channels first when its
+/// worker reached the end first), half of the rows waited for the last channel and were all
+/// written after the workers were done (0.8–1.2 ms with one core idle, 64 channels at
+/// 4096 Hz); lowest first, they go out while the others are finished.
 #[derive(Default)]
 pub(super) struct FinishQueue(std::sync::Mutex<std::collections::VecDeque<FinishJob>>);
 
@@ -32,9 +39,10 @@ impl FinishQueue {
         // A poisoned lock (a panic while holding it) still holds valid jobs.
         let mut queue = self.0.lock().unwrap_or_else(|e| e.into_inner());
         queue.extend(jobs);
+        queue.make_contiguous().sort_by_key(|job| job.channel);
     }
 
-    /// The next channel to finish, if any.
+    /// The lowest channel waiting to be finished, if any.
     pub(super) fn pop(&self) -> Option<FinishJob> {
         self.0.lock().unwrap_or_else(|e| e.into_inner()).pop_front()
     }
