@@ -133,15 +133,23 @@ fn regress(times: &[f64], levels: &[f64]) -> Option<(f64, f64)> {
     Some((fit.intercept_db, fit.slope_db_per_s))
 }
 
-/// The index of the first maximum of `v` (a NaN is replaced by the next value; 0 when empty).
+/// The index of the first maximum of `v` (a NaN is replaced by the next value; 0 when empty):
+/// the first of the non-NaN values equal to their maximum, or the last index when every value
+/// is NaN. The maximum in vector lanes, then a search for it eight values at a time: the
+/// one-value-at-a-time fold with its NaN test waited on each comparison (a third of this
+/// method's time at 2 ms frames).
 fn argmax(v: &[f64]) -> usize {
-    let (mut best, mut best_value) = (0, v.first().copied().unwrap_or(f64::NAN));
-    for (i, &x) in v.iter().enumerate() {
-        if x > best_value || best_value.is_nan() {
-            (best, best_value) = (i, x);
+    const CHUNK: usize = 8;
+    let m = super::max_ignoring_nan(v);
+    // −∞ both when it is the maximum and when every value is NaN; then no value equals it.
+    let mut at = 0;
+    for chunk in v.chunks(CHUNK) {
+        if chunk.iter().fold(false, |any, &x| any | (x == m)) {
+            return at + chunk.iter().position(|&x| x == m).unwrap_or(0);
         }
+        at += chunk.len();
     }
-    best
+    v.len().saturating_sub(1)
 }
 
 /// Runs Lundeby's iteration on `energy` (values `1/rate_hz` s apart).
@@ -196,13 +204,19 @@ pub fn lundeby(
     let idx_max = argmax(&smoothed2);
     let t_block = block2 as f64 / rate_hz;
     let mut noise = noise0;
+    // Where the last background level started: the same start gives the same level (often the
+    // last 10 % in every iteration), and its in-order sum was a third of this method's time.
+    let mut noise_from = None;
     for _ in 0..=30 {
         // (7) background level from 10 dB (of decay) after the crossing point, or the last 10 %.
         let idx_last10 = (smoothed2.len() as f64 * 0.9).round();
         let idx_10db = ((crossing - 10.0 / b) / t_block).round().max(1.0);
-        let from = idx_last10.min(idx_10db).max(0.0) as usize;
-        let rest = &smoothed2[from.min(smoothed2.len() - 1)..];
-        noise = rest.iter().sum::<f64>() / rest.len() as f64;
+        let from = (idx_last10.min(idx_10db).max(0.0) as usize).min(smoothed2.len() - 1);
+        if noise_from != Some(from) {
+            let rest = &smoothed2[from..];
+            noise = rest.iter().sum::<f64>() / rest.len() as f64;
+            noise_from = Some(from);
+        }
         // (8) late decay regression.
         let upper = db(noise) + settings.db_above_noise + settings.dynamic_range_db;
         let start_loop = smoothed2[idx_max..]
@@ -373,5 +387,42 @@ mod tests {
         assert_eq!(argmax(&[nan, nan, 2.0, 5.0, nan, 5.0]), 3);
         assert_eq!(argmax(&[4.0, nan, 9.0]), 2);
         assert_eq!(argmax(&[nan]), 0);
+        assert_eq!(argmax(&[nan, f64::NEG_INFINITY, nan]), 1);
+        assert_eq!(argmax(&[nan; 11]), 10);
+        // Against the plain fold (the definition): NaN, ±∞, signed zeros and ties at every
+        // position of 0–40 values.
+        let fold = |v: &[f64]| {
+            let (mut best, mut best_value) = (0, v.first().copied().unwrap_or(f64::NAN));
+            for (i, &x) in v.iter().enumerate() {
+                if x > best_value || best_value.is_nan() {
+                    (best, best_value) = (i, x);
+                }
+            }
+            best
+        };
+        let pool = [
+            nan,
+            0.0,
+            -0.0,
+            1.0,
+            -1.0,
+            2.5,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        for n in 0..=40 {
+            for _ in 0..200 {
+                let v: Vec<f64> = (0..n)
+                    .map(|_| {
+                        state ^= state << 13;
+                        state ^= state >> 7;
+                        state ^= state << 17;
+                        pool[(state % pool.len() as u64) as usize]
+                    })
+                    .collect();
+                assert_eq!(argmax(&v), fold(&v), "{v:?}");
+            }
+        }
     }
 }
