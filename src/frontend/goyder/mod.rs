@@ -67,6 +67,7 @@ impl Default for GoyderSettings {
 }
 
 /// The Goyder-style filter bank front end (`--front-end goyder`); one instance per channel.
+#[derive(Clone)]
 pub struct GoyderFrontEnd {
     bands: Vec<Band>,
     settings: GoyderSettings,

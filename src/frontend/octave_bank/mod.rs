@@ -142,6 +142,7 @@ fn with_frame_sums<R>(f: impl FnOnce(&mut Vec<FrameSums>) -> R) -> R {
 }
 
 /// The octave filter bank front end; one instance per channel.
+#[derive(Clone)]
 pub struct OctaveBankFrontEnd {
     bands: Vec<Band>,
     settings: OctaveBankSettings,

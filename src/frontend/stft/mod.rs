@@ -65,6 +65,7 @@ struct BandBins {
 }
 
 /// Streaming STFT: samples in, per band one energy (and peak frequency) per hop out.
+#[derive(Clone)]
 pub struct StftFrontEnd {
     bands: Vec<Band>,
     /// The bands' bins and weights, shared by every front end of the same transform and bands
