@@ -281,7 +281,6 @@ impl OctaveBankFrontEnd {
             with_frame_sums(|sums| {
                 // Through the transient zone without keeping the output, then frame by frame
                 // from the last to the first, a bounded chunk of frames at a time.
-                sums.clear();
                 self.kernel.filter(&buffer[used..], true, None, sums);
                 let mut out = BandFrames {
                     energy: frames,
@@ -291,7 +290,6 @@ impl OctaveBankFrontEnd {
                 let mut k_end = n_frames;
                 while k_end > 0 {
                     let k_start = k_end.saturating_sub(FRAMES_PER_CHUNK);
-                    sums.clear();
                     let chunk = &buffer[k_start * self.hop..k_end * self.hop];
                     self.kernel
                         .filter(chunk, true, Some((self.hop, self.hop)), sums);
@@ -374,7 +372,6 @@ impl FrontEnd for OctaveBankFrontEnd {
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         match self.settings.direction {
             FilterDirection::Forward => with_frame_sums(|sums| {
-                sums.clear();
                 let first = self.hop - self.in_frame;
                 self.kernel
                     .filter(samples, false, Some((first, self.hop)), sums);
