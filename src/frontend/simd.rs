@@ -109,6 +109,13 @@ impl Isa {
             .unwrap_or(Isa::Generic)
     }
 
+    /// [`Isa::detect`] once per process (it reads the environment and asks the CPU each time):
+    /// for loops small enough to be dispatched per call.
+    pub(crate) fn detected() -> Isa {
+        static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+        *ISA.get_or_init(Isa::detect)
+    }
+
     /// The instruction sets this CPU can run, from the most portable.
     pub(crate) fn available() -> Vec<Isa> {
         #[allow(unused_mut)]
