@@ -119,8 +119,10 @@ impl OnlineSchroeder {
         // band and decay at 2 ms frames).
         let n = energy.len().min(frequency.len());
         let start = self.energies.len();
-        self.energies
-            .extend(energy[..n].iter().map(|&x| kept_energy(x)));
+        let energies = &mut self.energies;
+        crate::frontend::simd::in_wide_vectors(|| {
+            energies.extend(energy[..n].iter().map(|&x| kept_energy(x)))
+        });
         self.store_frequencies(&frequency[..n], coding);
         start
     }

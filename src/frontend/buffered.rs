@@ -69,7 +69,9 @@ impl F32Buf {
     /// Appends `xs` rounded to f32.
     fn extend_rounded(&mut self, xs: &[f64]) {
         match self {
-            F32Buf::Heap(v) => v.extend(xs.iter().map(|&x| x as f32)),
+            F32Buf::Heap(v) => {
+                super::simd::in_wide_vectors(|| v.extend(xs.iter().map(|&x| x as f32)))
+            }
             F32Buf::Arena(s) => {
                 if !s.try_extend(xs) {
                     let mut v = Vec::with_capacity(2 * (s.as_slice().len() + xs.len()));

@@ -226,9 +226,11 @@ impl Slot {
         }
         // SAFETY: `len + xs.len() ≤ capacity`: this slot's range, initialised memory.
         let room = unsafe { std::slice::from_raw_parts_mut(self.ptr.add(self.len), xs.len()) };
-        for (r, &x) in room.iter_mut().zip(xs) {
-            *r = x as f32;
-        }
+        crate::frontend::simd::in_wide_vectors(|| {
+            for (r, &x) in room.iter_mut().zip(xs) {
+                *r = x as f32;
+            }
+        });
         self.len += xs.len();
         true
     }

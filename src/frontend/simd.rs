@@ -134,3 +134,32 @@ impl Isa {
         list
     }
 }
+
+/// Runs `f` compiled for this CPU's widest vectors ([`Isa::detected`]): a plain loop over
+/// `f64`s inside it is auto-vectorised with AVX-512 or AVX2 instead of the two-value SSE2 of
+/// portable x86-64 code (where a NaN or finiteness test on 64-bit values even takes integer
+/// shuffles). `f` is inlined into the feature-enabled copy; same arithmetic, same results.
+#[inline(always)]
+pub(crate) fn in_wide_vectors<R>(f: impl FnOnce() -> R) -> R {
+    match Isa::detected() {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Isa::detected` found AVX-512F on this CPU.
+        Isa::Avx512 => unsafe { run_avx512(f) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: `Isa::detected` found AVX2 and FMA on this CPU.
+        Isa::Avx2Fma => unsafe { run_avx2(f) },
+        Isa::Generic => f(),
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+unsafe fn run_avx512<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn run_avx2<R>(f: impl FnOnce() -> R) -> R {
+    f()
+}

@@ -26,9 +26,11 @@ pub(super) fn mark_low(all_low: &mut [bool], band: &[f64], peak: f64, end_factor
         k += 1;
     }
     let threshold = p * end_factor;
-    for (low, &e) in all_low[k..band.len()].iter_mut().zip(&band[k..]) {
-        *low &= e <= threshold;
-    }
+    crate::frontend::simd::in_wide_vectors(|| {
+        for (low, &e) in all_low[k..band.len()].iter_mut().zip(&band[k..]) {
+            *low &= e <= threshold;
+        }
+    });
     p
 }
 
