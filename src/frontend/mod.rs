@@ -320,14 +320,22 @@ thread_local! {
         const { std::cell::RefCell::new((Vec::new(), Vec::new())) };
 }
 
-/// Runs `f` with this thread's frame arrays of a buffering bank, both `len` long and zero.
+/// Runs `f` with this thread's frame arrays of a buffering bank, both `len` long and zero;
+/// with `overwritten` (a bank that writes every entry) they hold whatever the thread's last
+/// decay left instead, which spares zeroing half a megabyte per decay (0.8 % of a 64-channel
+/// octave-bank run at 4096 Hz).
 pub(crate) fn with_band_frame_arrays<R>(
     len: usize,
+    overwritten: bool,
     f: impl FnOnce(&mut [f64], &mut [f64]) -> R,
 ) -> R {
     let run = |arrays: &mut (Vec<f64>, Vec<f64>)| {
         for v in [&mut arrays.0, &mut arrays.1] {
-            v.clear();
+            if overwritten {
+                v.truncate(len);
+            } else {
+                v.clear();
+            }
             v.resize(len, 0.0);
         }
         f(&mut arrays.0, &mut arrays.1)

@@ -90,7 +90,7 @@ impl GoyderFrontEnd {
             /// the frequencies will be).
             static LAG_IM: std::cell::RefCell<Vec<f64>> = const { std::cell::RefCell::new(Vec::new()) };
         }
-        super::with_band_frame_arrays(n_frames * nb, |energy, freq| {
+        super::with_band_frame_arrays(n_frames * nb, false, |energy, freq| {
             super::with_thread_scratch(&LAG_IM, |lag_im| {
                 lag_im.clear();
                 lag_im.resize(n_frames * nb, 0.0);

@@ -277,7 +277,8 @@ impl OctaveBankFrontEnd {
         let nb = self.bands.len();
         let energy_scale = self.energy_scale();
         self.clear_filters();
-        super::with_band_frame_arrays(n_frames * nb, |frames, freqs| {
+        // Every band's every frame is written below (the chunks cover frames n_frames..0).
+        super::with_band_frame_arrays(n_frames * nb, true, |frames, freqs| {
             with_frame_sums(|sums| {
                 // Through the transient zone without keeping the output, then frame by frame
                 // from the last to the first, a bounded chunk of frames at a time.
@@ -493,5 +494,49 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A reversed decay's frames do not depend on what the thread's frame arrays held before
+    /// (they are not zeroed: every entry is written): after NaN-filled arrays longer than the
+    /// decay needs, and after a longer decay of other samples, the same bits as in a fresh
+    /// thread.
+    #[test]
+    fn reversed_frames_ignore_what_the_frame_arrays_held() {
+        let fs = 4096.0;
+        let bands = [
+            Band::new(44.67, 89.13).unwrap(),
+            Band::new(89.13, 177.8).unwrap(),
+            Band::new(177.8, 354.8).unwrap(),
+        ];
+        let decay = |f_hz: f64, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| {
+                    let t = i as f64 / fs;
+                    (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * f_hz * t).sin()
+                })
+                .collect()
+        };
+        let frames_of = |x: &[f64]| -> Vec<u64> {
+            let mut fe =
+                OctaveBankFrontEnd::new(OctaveBankSettings::default(), fs, &bands).unwrap();
+            let mut out = Vec::new();
+            let mut sink = |f: Frame<'_>| {
+                out.extend(f.energy.iter().chain(f.frequency_hz).map(|v| v.to_bits()));
+            };
+            fe.begin_decay(&[]);
+            fe.process(x, &mut sink);
+            fe.finish(&mut sink);
+            out
+        };
+        let x = decay(130.0, 9000);
+        let fresh = std::thread::scope(|s| s.spawn(|| frames_of(&x)).join().unwrap());
+        assert!(!fresh.is_empty());
+        crate::frontend::with_band_frame_arrays(100_000, false, |e, f| {
+            e.fill(f64::NAN);
+            f.fill(f64::NAN);
+        });
+        assert_eq!(frames_of(&x), fresh, "after NaN-filled arrays");
+        frames_of(&decay(70.0, 30_000));
+        assert_eq!(frames_of(&x), fresh, "after a longer decay");
     }
 }
