@@ -149,12 +149,7 @@ pub(crate) fn take_slot(lead: usize, capacity: usize) -> Option<Slot> {
         let want = lead
             .saturating_add(arena.input_frames)
             .min(capacity)
-            .checked_next_multiple_of(SLOT_ALIGN_SAMPLES)?
-            + if std::env::var_os("DS_PAD").is_some() {
-                16 * 37
-            } else {
-                0
-            };
+            .checked_next_multiple_of(SLOT_ALIGN_SAMPLES)?;
         let end = arena.used_samples.checked_add(want)?;
         if want == 0 || end > arena.region.len_samples {
             return None;
