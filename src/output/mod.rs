@@ -5,6 +5,7 @@
 //! each decay's results as soon as it ends.
 
 pub mod atomic;
+pub mod fixed6;
 pub mod raw;
 pub mod recording_set;
 pub mod uff;
@@ -51,8 +52,23 @@ pub struct Fixed6(pub Option<f64>);
 
 impl serde::Serialize for Fixed6 {
     fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        thread_local! {
+            /// The cell's text (one buffer per thread instead of a string per cell).
+            static CELL: std::cell::RefCell<String> = const { std::cell::RefCell::new(String::new()) };
+        }
         match self.0 {
-            Some(x) if x.is_finite() => s.serialize_str(&format!("{x:.6}")),
+            Some(x) if x.is_finite() => CELL.with(|cell| match cell.try_borrow_mut() {
+                Ok(mut text) => {
+                    text.clear();
+                    fixed6::write_fixed6(x, &mut text);
+                    s.serialize_str(&text)
+                }
+                Err(_) => {
+                    let mut text = String::new();
+                    fixed6::write_fixed6(x, &mut text);
+                    s.serialize_str(&text)
+                }
+            }),
             _ => s.serialize_none(),
         }
     }
