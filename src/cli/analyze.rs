@@ -12,7 +12,7 @@ use crate::plan::PreparedRun;
 use crate::source::open::open_input;
 use crate::source::Source;
 
-/// Options of `dampscope analyze`.
+/// Estimate decay times and damping ratios per band and channel (file, directory or `-`).
 #[derive(Debug, clap::Args)]
 pub struct AnalyzeArgs {
     /// A .wav or .csv file, a recording-set directory, or `-` for standard input

@@ -23,7 +23,7 @@ pub enum BenchFormat {
     Jsonl,
 }
 
-/// Options of `dampscope bench`.
+/// Time the whole analysis per front end on synthetic (or given) multichannel decays.
 #[derive(Debug, clap::Args)]
 pub struct BenchArgs {
     /// Time this input (a file, recording set or `-`; read whole, then fed as raw f32 like the

@@ -34,7 +34,7 @@ fn parse_column(text: &str) -> Result<CompareColumn, String> {
         .map_err(|_| format!("expected stft, goyder, octave or modal, got '{text}'"))
 }
 
-/// Options of `dampscope compare`.
+/// Run STFT, Goyder bank and octave bank side by side on one input, or the built-in sweep.
 #[derive(Debug, clap::Args)]
 pub struct CompareArgs {
     /// A .wav or .csv file, a recording-set directory, or `-` (not needed with --sweep).

@@ -3,7 +3,7 @@
 use crate::analysis::demo::{demo_cases, plate_cases, run_case, DEMO_FS_HZ};
 use crate::plan::FrontEndKind;
 
-/// Options of `dampscope demo`.
+/// Run the built-in demonstration: the report's reference cases, no input files needed.
 #[derive(Debug, clap::Args)]
 pub struct DemoArgs {}
 

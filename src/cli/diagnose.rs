@@ -21,7 +21,7 @@ use crate::source::recording_set::open_recording_set;
 /// Most samples per channel read.
 const MAX_DIAGNOSE_SAMPLES: usize = 1 << 24;
 
-/// Options of `dampscope diagnose`.
+/// Name the physics the model lacks (mass, stiffness, edge support, loss, damping law, noise), where and how much; update the model, show the fit.
 #[derive(Debug, clap::Args)]
 pub struct DiagnoseArgs {
     /// The recordings: a recording-set directory (sensor positions are needed).

@@ -21,7 +21,7 @@ use crate::pipeline::{self, ResultRow};
 use crate::source::open::open_input;
 use crate::source::recording_set::read_sensors;
 
-/// Options of `dampscope map`.
+/// Local damping maps over the sensors and the global damping per band (recording set).
 #[derive(Debug, clap::Args)]
 pub struct MapArgs {
     /// A recording-set directory (sensor positions from its sensors.csv), or any other input

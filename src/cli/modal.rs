@@ -16,7 +16,7 @@ use crate::source::open::open_input;
 /// Most samples per channel `modal` reads (the identification holds the whole record).
 pub const MAX_MODAL_SAMPLES: usize = 1 << 26;
 
-/// Arguments of `dampscope modal`.
+/// Modal identification from all channels at once: modes.csv, shapes.csv, stabilisation.png.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ModalArgs {
     /// A recording set directory, a .wav/.csv file, or `-` for standard input.

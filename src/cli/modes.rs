@@ -8,7 +8,7 @@ use crate::sim::assembly::assemble;
 use crate::sim::eigen::{check_modes, lowest_modes_with, EigenOptions, ModeRequest};
 use crate::sim::model::Model;
 
-/// Arguments of `dampscope modes`.
+/// Natural frequencies of the finite-element plate model (CSV `mode,frequency_hz`).
 #[derive(Debug, Clone, clap::Args)]
 pub struct ModesArgs {
     /// Plate model (TOML, FORMATS.md §3); default: the report's reference plate.

@@ -15,7 +15,7 @@ use crate::analysis::resynthesis::{resynthesize_model, BandDamping, DEFAULT_MODE
 use crate::output::write_csv_file;
 use crate::sim::model::Model;
 
-/// Options of `dampscope resynth`.
+/// Re-synthesise the model's FRF from the global damping per band and compare (eq. 4.8).
 #[derive(Debug, clap::Args)]
 pub struct ResynthArgs {
     /// Plate model (TOML) whose FRF is re-synthesised; default: the report's reference plate.

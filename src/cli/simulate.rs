@@ -32,7 +32,7 @@ pub enum SnrDefinition {
     MeanPower,
 }
 
-/// Arguments of `dampscope simulate`.
+/// Simulate the finite-element plate: a recording set (--out DIR) or a WAV stream (--stdout).
 #[derive(Clone, Debug, clap::Args)]
 pub struct SimulateArgs {
     /// Plate model (TOML, docs/FORMATS.md §3); default: the report's reference plate.

@@ -9,7 +9,7 @@ use anyhow::Context;
 use crate::analysis::spread::summarize_table;
 use crate::output::write_csv_file;
 
-/// Options of `dampscope summarize`.
+/// Combine the decays of an analyze results table per channel and band: count, missing by reason, median/quartiles/min/max of D and T60.
 #[derive(Debug, clap::Args)]
 pub struct SummarizeArgs {
     /// A results table written by `dampscope analyze` (CSV), or `-` for standard input.

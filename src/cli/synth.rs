@@ -21,7 +21,7 @@ pub enum SynthFormat {
     Csv,
 }
 
-/// Options of `dampscope synth`.
+/// Write decaying sines (report eq. 4.5) as WAV, raw f32 or CSV (stdout or --out).
 #[derive(Clone, Debug, clap::Args)]
 pub struct SynthArgs {
     /// A decaying sine `F:D[:A[:PSI]]`: frequency in Hz, damping ratio, amplitude (default 1),
