@@ -309,35 +309,60 @@ enum Floor {
 /// (measured: STFT band of 5 Hz, 12 s at 35 dB PSNR, 2 of 16 noise seeds missed by the tenths
 /// alone and their numbers withheld as `poor_fit`), and a decay still falling is farther below
 /// over a fifth than over a tenth, so it is no likelier to be taken for noise.
-fn noise_floor_pnr_db(energies: &[f64]) -> Option<f64> {
+fn noise_floor_pnr_db(energies: &[f64], figures: &EndFigures) -> Option<f64> {
     let n = energies.len();
     if n < 20 {
         return None;
     }
     let mean = |s: &[f64]| s.iter().sum::<f64>() / s.len() as f64;
+    // The last tenth's mean is `figures.tenth_mean` (n ≥ 20: a tenth is at least 2 frames).
+    let tail_of = |part: usize| {
+        if part == n / 10 {
+            figures.tenth_mean
+        } else {
+            mean(&energies[n - part..])
+        }
+    };
     let flat = |part: usize| {
-        let tail = mean(&energies[n - part..]);
+        let tail = tail_of(part);
         let before = mean(&energies[n - 2 * part..n - part]);
         tail > 0.0 && before < 2.0 * tail
     };
-    let tail = mean(&energies[n - (n / 10).max(2)..]);
-    let peak = super::peak_or_zero(energies);
+    let (tail, peak) = (figures.tenth_mean, figures.peak);
     if tail <= 0.0 || peak <= 0.0 {
         return None;
     }
     let pnr = 10.0 * (peak / tail).log10();
-    ((flat((n / 10).max(2)) || flat(n / 5)) && pnr < 150.0).then_some(pnr)
+    ((flat(n / 10) || flat(n / 5)) && pnr < 150.0).then_some(pnr)
+}
+
+/// What the noise-floor test and the dynamic range both read from a band's frames: its peak
+/// (NaN ignored, at least 0) and the mean of its last tenth (at least one frame). Each was
+/// computed in both (a scan and an in-order sum over 500 of 5000 frames, twice per band).
+struct EndFigures {
+    peak: f64,
+    /// NaN without frames.
+    tenth_mean: f64,
+}
+
+impl EndFigures {
+    fn of(energies: &[f64]) -> EndFigures {
+        let tenth = (energies.len() / 10).max(1).min(energies.len());
+        let last = &energies[energies.len() - tenth..];
+        EndFigures {
+            peak: super::peak_or_zero(energies),
+            tenth_mean: last.iter().sum::<f64>() / tenth as f64,
+        }
+    }
 }
 
 /// Peak frame energy over the mean of the last tenth of the frames, in dB (`None` when there are
 /// fewer than two frames or no energy at the end).
-fn peak_to_tail_db(energies: &[f64]) -> Option<f64> {
-    let peak = super::peak_or_zero(energies);
+fn peak_to_tail_db(energies: &[f64], figures: &EndFigures) -> Option<f64> {
+    let (peak, tail) = (figures.peak, figures.tenth_mean);
     if energies.len() < 2 || peak <= 0.0 {
         return None;
     }
-    let tenth = (energies.len() / 10).max(1);
-    let tail = energies[energies.len() - tenth..].iter().sum::<f64>() / tenth as f64;
     (tail > 0.0).then(|| 10.0 * (peak / tail).log10())
 }
 
@@ -422,7 +447,8 @@ pub fn estimate_from_coded_curve(
     if edc.is_empty() || edc[0] <= 0.0 || !edc[0].is_finite() {
         return DecayEstimate::failed(Flag::NoEnergy);
     }
-    let noise = noise_floor_pnr_db(energies);
+    let figures = EndFigures::of(energies);
+    let noise = noise_floor_pnr_db(energies, &figures);
     // With a noise floor, truncate at Lundeby's intersection time and add the missing tail.
     let mut noise_compensated = false;
     let compensated = match noise {
@@ -477,7 +503,7 @@ pub fn estimate_from_coded_curve(
     let times_s: Vec<f64> = (0..levels_db.len())
         .map(|k| k as f64 * frame_period_s)
         .collect();
-    let dynamic_range_db = peak_to_tail_db(energies);
+    let dynamic_range_db = peak_to_tail_db(energies, &figures);
     let floor = match (noise, dynamic_range_db) {
         (Some(pnr_db), _) => Floor::Noise(pnr_db),
         (None, Some(db)) => Floor::RecordEnd(db),
