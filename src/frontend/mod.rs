@@ -18,6 +18,8 @@ pub(crate) mod lane_atan2;
 pub mod octave_bank;
 pub(crate) mod simd;
 pub mod stft;
+#[cfg(test)]
+pub(crate) mod test_frames;
 
 use crate::decay::FrequencyCoding;
 pub use bands::Band;

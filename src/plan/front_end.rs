@@ -209,30 +209,8 @@ mod tests {
             Band::new(90.0, 180.0).unwrap(),
             Band::new(180.0, 360.0).unwrap(),
         ];
-        let signal = |f: f64, n: usize| -> Vec<f64> {
-            (0..n)
-                .map(|i| {
-                    let t = i as f64 / fs;
-                    (-4.0 * t).exp() * (2.0 * std::f64::consts::PI * f * t).sin()
-                })
-                .collect()
-        };
-        let frames = |fe: &mut dyn FrontEnd, x: &[f64]| -> Vec<u64> {
-            let mut out = Vec::new();
-            let mut sink = |frame: crate::frontend::Frame<'_>| {
-                out.extend(
-                    frame
-                        .energy
-                        .iter()
-                        .chain(frame.frequency_hz)
-                        .map(|v| v.to_bits()),
-                );
-            };
-            fe.begin_decay(&[]);
-            fe.process(x, &mut sink);
-            fe.finish(&mut sink);
-            out
-        };
+        use crate::frontend::test_frames::{decay_frame_bits as frames, decaying_sine};
+        let signal = |f: f64, n: usize| decaying_sine(fs, f, 4.0, n);
         for direction in [FilterDirection::Reversed, FilterDirection::Forward] {
             for k in FrontEndKind::ALL {
                 let spec = FrontEndSpec {

@@ -344,6 +344,18 @@ impl Kernel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `n` deterministic samples in [-0.5, 0.5).
+    fn samples(n: usize) -> Vec<f64> {
+        (0..n)
+            .map(|n| ((n * 7919) % 211) as f64 / 211.0 - 0.5)
+            .collect()
+    }
+
+    /// Frame sums as bits (NaN payloads and signed zeros told apart).
+    fn bits(v: &[FrameSums]) -> Vec<u64> {
+        v.iter().flatten().map(|x| x.to_bits()).collect()
+    }
     use biquad::{Biquad, Coefficients, DirectForm2Transposed};
 
     /// The obviously correct bank: the `biquad` crate's sections, one band and sample at a
@@ -455,9 +467,7 @@ mod tests {
             .into_iter()
             .filter(|&isa| isa != Isa::Generic || cfg!(target_arch = "aarch64"))
             .collect();
-        let xs: Vec<f64> = (0..1500)
-            .map(|n| ((n * 7919) % 211) as f64 / 211.0 - 0.5)
-            .collect();
+        let xs = samples(1500);
         for n_bands in 1..=17 {
             let sections = bank(n_bands, 3, 8000.0);
             let mut first: Option<Vec<u64>> = None;
@@ -485,9 +495,7 @@ mod tests {
     #[test]
     fn reversed_and_silent_runs_are_the_same_filter() {
         let sections = bank(5, 3, 4000.0);
-        let xs: Vec<f64> = (0..999)
-            .map(|n| ((n * 7919) % 211) as f64 / 211.0 - 0.5)
-            .collect();
+        let xs = samples(999);
         let rev: Vec<f64> = xs.iter().rev().copied().collect();
         let (mut a, mut b) = (Kernel::new(&sections), Kernel::new(&sections));
         let (mut out_a, mut out_b) = (Vec::new(), Vec::new());
@@ -504,9 +512,7 @@ mod tests {
     #[test]
     fn frames_replace_what_out_held() {
         let sections = bank(6, 3, 4096.0);
-        let xs: Vec<f64> = (0..1000)
-            .map(|n| ((n * 7919) % 211) as f64 / 211.0 - 0.5)
-            .collect();
+        let xs = samples(1000);
         for isa in Isa::available() {
             let mut fresh = Vec::new();
             Kernel::with_isa(&sections, isa).filter(&xs, true, Some((8, 8)), &mut fresh);
@@ -514,9 +520,6 @@ mod tests {
             for held in [0usize, 10, 749, 750, 751, 5000] {
                 let mut out = vec![[f64::NAN; 3]; held];
                 Kernel::with_isa(&sections, isa).filter(&xs, true, Some((8, 8)), &mut out);
-                let bits = |v: &[FrameSums]| -> Vec<u64> {
-                    v.iter().flatten().map(|x| x.to_bits()).collect()
-                };
                 assert_eq!(bits(&out), bits(&fresh), "{isa:?}, {held} held");
             }
             let mut out = vec![[1.0; 3]; 40];
@@ -543,9 +546,6 @@ mod tests {
                 let (mut out_a, mut out_b) = (Vec::new(), Vec::new());
                 a.filter(&xs32, reversed, Some((8, 8)), &mut out_a);
                 b.filter(&xs64, reversed, Some((8, 8)), &mut out_b);
-                let bits = |v: &[FrameSums]| -> Vec<u64> {
-                    v.iter().flatten().map(|x| x.to_bits()).collect()
-                };
                 assert!(!out_a.is_empty());
                 assert_eq!(bits(&out_a), bits(&out_b), "{isa:?} reversed {reversed}");
             }

@@ -508,25 +508,14 @@ mod tests {
             Band::new(89.13, 177.8).unwrap(),
             Band::new(177.8, 354.8).unwrap(),
         ];
-        let decay = |f_hz: f64, n: usize| -> Vec<f64> {
-            (0..n)
-                .map(|i| {
-                    let t = i as f64 / fs;
-                    (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * f_hz * t).sin()
-                })
-                .collect()
-        };
+        use crate::frontend::test_frames::{decay_frame_bits, decaying_sine};
+        let decay = |f_hz: f64, n: usize| decaying_sine(fs, f_hz, 3.0, n);
         let frames_of = |x: &[f64]| -> Vec<u64> {
-            let mut fe =
-                OctaveBankFrontEnd::new(OctaveBankSettings::default(), fs, &bands).unwrap();
-            let mut out = Vec::new();
-            let mut sink = |f: Frame<'_>| {
-                out.extend(f.energy.iter().chain(f.frequency_hz).map(|v| v.to_bits()));
-            };
-            fe.begin_decay(&[]);
-            fe.process(x, &mut sink);
-            fe.finish(&mut sink);
-            out
+            let settings = OctaveBankSettings::default();
+            decay_frame_bits(
+                &mut OctaveBankFrontEnd::new(settings, fs, &bands).unwrap(),
+                x,
+            )
         };
         let x = decay(130.0, 9000);
         let fresh = std::thread::scope(|s| s.spawn(|| frames_of(&x)).join().unwrap());
