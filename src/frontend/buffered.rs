@@ -3,7 +3,7 @@
 //!
 //! Filtering the time-reversed decay preserves its decay rate where a causal filter's ringing
 //! would smear it (Jacobsen & Rindel 1987); the price is that the whole decay must be held.
-//! [`DecayBuffer`] holds it, bounded: samples past its capacity are dropped and the decay is
+//! `DecayBuffer` holds it, bounded: samples past its capacity are dropped and the decay is
 //! marked as overflowed (`decay_too_long`), so that memory never grows with the input.
 
 /// In which time direction a band filter runs over the decay.

@@ -31,9 +31,9 @@ pub struct ModelSize {
     pub matrix_nonzeros: f64,
     /// Entries of the shift-invert factor (banded bound: 9 (nz + 1)(min(nx, ny) + 1) per dof).
     pub factor_entries: f64,
-    /// Vectors of the Lanczos basis (at most [`MAX_BASIS_VECTORS`]).
+    /// Vectors of the Lanczos basis (at most `MAX_BASIS_VECTORS`).
     pub basis_vectors: f64,
-    /// Sensors (a sensor file counts as [`SENSORS_OF_A_FILE`]).
+    /// Sensors (a sensor file counts as `SENSORS_OF_A_FILE`).
     pub sensors: usize,
     /// Frequency lines 0 … fmax at df.
     pub frequency_lines: f64,

@@ -1,5 +1,5 @@
 //! Work shared by the many models of one diagnosis: sparse Cholesky factors here, the mesh's
-//! assembly plan in [`super::scatter_plan`].
+//! assembly plan in `scatter_plan`.
 //!
 //! A diagnosis solves dozens of candidate models of one mesh: the stiffness and the shifted
 //! K₀ − σM of every candidate have the same sparsity pattern, and a loss-only candidate (a
@@ -275,7 +275,7 @@ pub fn kept_modes(key: &[u64; 2]) -> Option<(Modes, EigenReport)> {
 }
 
 /// Inside a [`scope`]: keeps `modes` as the solution of the problem `key` (within
-/// [`MODES_ENTRIES`] and [`MODES_BYTES`]).
+/// `MODES_ENTRIES` and `MODES_BYTES`).
 pub fn keep_modes(key: [u64; 2], modes: &Modes, report: &EigenReport) {
     let bytes = |m: &Modes| m.shapes.nrows() * m.shapes.ncols() * std::mem::size_of::<f64>();
     if active() && bytes(modes) <= MODES_BYTES {

@@ -10,7 +10,7 @@
 //! start-up transient lands at the *end* of the original record; the last `cut_factor / B`
 //! seconds of each band (B its width) are therefore dropped: frames run to the widest band's
 //! cut, and each narrower band's frames past its own cut are marked inactive
-//! ([`Frame::active`]), so that one narrow band (two close modes) does not shorten the others.
+//! ([`crate::frontend::Frame::active`]), so that one narrow band (two close modes) does not shorten the others.
 //!
 //! Frames: consecutive blocks of `hop = round(frame_period_ms · fs / 1000)` samples from the
 //! onset; frame energy = block mean of 2|z|² (the mean square of the band signal), frame

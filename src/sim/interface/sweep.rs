@@ -69,7 +69,7 @@ pub enum ModalSums {
     /// Every mode at every frequency (the oracle).
     Exact,
     /// Modes far from a block of frequencies interpolated from Chebyshev nodes
-    /// ([`super::blocks`]), the rest exact.
+    /// (`blocks`), the rest exact.
     Interpolated,
 }
 
@@ -312,7 +312,7 @@ impl InterfaceModel {
     }
 
     /// Receptance at every sensor and frequency as modal responses × sensor weights, the
-    /// modal sums interpolated where exact ([`super::blocks`]), the blocks of frequencies shared
+    /// modal sums interpolated where exact (`blocks`), the blocks of frequencies shared
     /// by two threads.
     pub fn factored_frf(&self, freqs_hz: &[f64]) -> Result<FactoredFrf, FrfError> {
         self.factored_frf_with(freqs_hz, ModalSums::Interpolated)
