@@ -172,39 +172,38 @@ pub fn run_with(
         per_channel * n_channels as f64 + blocks,
     )?;
     let mut first = Some(first);
-    let mut groups: Vec<WorkerChannels> = Vec::with_capacity(workers);
-    for range in channel_shares(n_channels, workers) {
-        let mut analyzers = Vec::with_capacity(range.len());
-        for c in range.clone() {
-            let fe = match first.take() {
-                Some(fe) => fe,
-                None => factory()?,
-            };
-            let name = info.channel_names[c].clone();
-            let mut an = ChannelAnalyzer::new(name, info.sample_rate_hz, fe, *config);
-            if options.profile_stages {
-                an.profile_stages();
-            }
-            analyzers.push((c, an));
-        }
-        groups.push(WorkerChannels { range, analyzers });
-    }
+    // A front end the factory failed to build (in a worker, see below): the run's error.
+    let build_error: std::sync::Mutex<Option<Error>> = std::sync::Mutex::new(None);
     let (row_tx, row_rx) = bounded::<WorkerReport>(64);
     let finishing = FinishQueue::default();
     std::thread::scope(|scope| -> Result<RunSummary> {
         let mut worker_txs: Vec<Sender<ToWorker>> = Vec::new();
         let mut handles = Vec::new();
         let finishing = &finishing;
-        for group in groups {
+        let (info, build_error) = (&info, &build_error);
+        for range in channel_shares(n_channels, workers) {
             let (tx, rx) = bounded::<ToWorker>(4);
             worker_txs.push(tx);
             let row_tx = row_tx.clone();
             let input_frames = input_frames.filter(|_| !options.plain_decay_buffers);
+            let first = first.take();
             handles.push(scope.spawn(move || {
                 // Decay buffers of this worker's channels on huge pages, where the length is
                 // known.
-                let _arena = crate::frontend::decay_arena::install(group.range.len(), input_frames);
-                worker(group, rx, row_tx, finishing)
+                let _arena = crate::frontend::decay_arena::install(range.len(), input_frames);
+                // Each worker builds its own channels' analyzers, both at once: built by the
+                // caller's thread, their fresh memory's page faults were 0.3 ms with the other
+                // core idle (64 octave-bank channels). A failure ends this worker (the reader
+                // then stops) and the run returns it.
+                match build_analyzers(range.clone(), first, factory, info, config, options) {
+                    Ok(analyzers) => {
+                        worker(WorkerChannels { range, analyzers }, rx, row_tx, finishing)
+                    }
+                    Err(e) => {
+                        let mut slot = build_error.lock().unwrap_or_else(|e| e.into_inner());
+                        slot.get_or_insert(e);
+                    }
+                }
             }));
         }
         drop(row_tx);
@@ -326,8 +325,37 @@ pub fn run_with(
         for h in handles {
             let _ = h.join();
         }
+        if let Some(e) = build_error.lock().unwrap_or_else(|e| e.into_inner()).take() {
+            return Err(e);
+        }
         result.map(|_| summary)
     })
+}
+
+/// The analyzers of channels `range`, in order: the first on `first` when given (the front end
+/// the run was sized with), the others on front ends from `factory`.
+fn build_analyzers(
+    range: std::ops::Range<usize>,
+    mut first: Option<Box<dyn crate::frontend::FrontEnd>>,
+    factory: &FrontEndFactory,
+    info: &crate::source::SignalInfo,
+    config: &AnalysisConfig,
+    options: RunOptions,
+) -> Result<Vec<(usize, ChannelAnalyzer)>> {
+    let mut analyzers = Vec::with_capacity(range.len());
+    for c in range {
+        let fe = match first.take() {
+            Some(fe) => fe,
+            None => factory()?,
+        };
+        let name = info.channel_names[c].clone();
+        let mut an = ChannelAnalyzer::new(name, info.sample_rate_hz, fe, *config);
+        if options.profile_stages {
+            an.profile_stages();
+        }
+        analyzers.push((c, an));
+    }
+    Ok(analyzers)
 }
 
 /// What one worker analyses: its run of channels and their analyzers, in channel order.
@@ -466,6 +494,71 @@ mod tests {
                 let taken = crate::frontend::decay_arena::SLOTS_TAKEN.load(Ordering::Relaxed);
                 if cfg!(target_os = "linux") {
                     assert!(taken - before >= 32, "{kind:?}: {} slots", taken - before);
+                }
+            }
+        }
+    }
+
+    /// The workers build their channels' analyzers: a factory that fails for some channel fails
+    /// the run with its own error (no hang, no panic), on one and on two workers, whichever
+    /// worker's channel it is; one that never fails gives every channel's rows.
+    #[test]
+    fn a_front_end_that_cannot_be_built_fails_the_run() {
+        use crate::analysis::bench::BenchInput;
+        use crate::plan::{BandLayout, BandSpec, FrontEndSpec};
+        use std::sync::atomic::{AtomicUsize, Ordering};
+        use std::sync::Arc;
+        let input = BenchInput::synthetic(8, 4096.0, 1.0).unwrap();
+        let bands = BandLayout {
+            specs: vec!["octave".parse::<BandSpec>().unwrap()],
+            ..Default::default()
+        }
+        .resolve(input.fs_hz, None)
+        .unwrap()
+        .bands;
+        let good = FrontEndSpec::default()
+            .factory(input.fs_hz, bands.clone())
+            .unwrap();
+        let config = crate::pipeline::AnalysisConfig::default();
+        // Calls: one to size the run, then one per channel but the first.
+        for fail_at in [None, Some(2), Some(6), Some(8)] {
+            for threads in [1, 2] {
+                let calls = Arc::new(AtomicUsize::new(0));
+                let (good, counter) = (good.clone(), calls.clone());
+                let factory: crate::pipeline::FrontEndFactory = Arc::new(move || {
+                    let n = counter.fetch_add(1, Ordering::SeqCst) + 1;
+                    if Some(n) == fail_at {
+                        Err(crate::error::Error::setting(
+                            "front end",
+                            format!("call {n} refused"),
+                        ))
+                    } else {
+                        good()
+                    }
+                });
+                let options = super::RunOptions {
+                    threads: Some(threads),
+                    ..Default::default()
+                };
+                let mut rows = 0;
+                let run =
+                    super::run_with(input.source().unwrap(), &factory, &config, options, |r| {
+                        rows += r.len();
+                        Ok(())
+                    });
+                match fail_at {
+                    None => {
+                        run.unwrap();
+                        assert_eq!(rows, 8 * bands.len());
+                        assert_eq!(calls.load(Ordering::SeqCst), 8);
+                    }
+                    Some(n) => {
+                        let e = run.unwrap_err().to_string();
+                        assert!(
+                            e.contains(&format!("call {n} refused")),
+                            "{threads} threads: {e}"
+                        );
+                    }
                 }
             }
         }
