@@ -1,5 +1,5 @@
 //! The threads of a run: a reader hands each block to every worker over bounded channels; each
-//! worker owns the [`ChannelAnalyzer`]s of a contiguous run of channels (a panic in one channel
+//! worker builds and owns the [`ChannelAnalyzer`]s of a contiguous run of channels (a panic in one channel
 //! stops that channel only) and, where the source leaves blocks encoded, decodes just those
 //! channels itself; finished rows come back in stream order ([`super::order::RowOrder`]). At
 //! the end of the input, every worker's open channels go to one queue that all workers drain
@@ -108,7 +108,9 @@ impl<T: Default> BlockPool<T> {
 }
 
 /// Runs the whole analysis of `source`, calling `on_rows` with each batch of finished rows as soon
-/// as it is ready. Errors from `on_rows` stop the run.
+/// as it is ready. Errors from `on_rows` stop the run. A front end the factory cannot build fails
+/// the run (the settings are checked on one before any thread starts; a factory that fails later,
+/// in a worker, may leave other channels' rows delivered before the error).
 pub fn run(
     source: Box<dyn Source>,
     factory: &FrontEndFactory,
