@@ -452,22 +452,28 @@ mod tests {
         assert_eq!(channel_shares(64, 2), vec![0..32, 32..64]);
     }
 
+    /// The IEC octave bands below Nyquist at `fs_hz`.
+    fn octave_bands(fs_hz: f64) -> Vec<crate::frontend::Band> {
+        use crate::plan::{BandLayout, BandSpec};
+        BandLayout {
+            specs: vec!["octave".parse::<BandSpec>().unwrap()],
+            ..Default::default()
+        }
+        .resolve(fs_hz, None)
+        .unwrap()
+        .bands
+    }
+
     /// Decay buffers from the workers' huge-page arenas give the rows the allocator's give,
     /// bit for bit, for both buffering banks on one and two workers; and the arenas were used.
     #[test]
     fn decays_in_arenas_give_the_same_rows() {
         use crate::analysis::bench::BenchInput;
-        use crate::plan::{BandLayout, BandSpec, FrontEndKind, FrontEndSpec};
+        use crate::plan::{FrontEndKind, FrontEndSpec};
         use std::sync::atomic::Ordering;
         // 32 channels × 10 s at 4096 Hz: 2.6 MB of decays per worker of two, enough for one.
         let input = BenchInput::synthetic(32, 4096.0, 10.0).unwrap();
-        let bands = BandLayout {
-            specs: vec!["octave".parse::<BandSpec>().unwrap()],
-            ..Default::default()
-        }
-        .resolve(input.fs_hz, None)
-        .unwrap()
-        .bands;
+        let bands = octave_bands(input.fs_hz);
         for kind in [FrontEndKind::Octave, FrontEndKind::Goyder] {
             let factory = FrontEndSpec::default()
                 .with_kind(kind)
@@ -507,17 +513,11 @@ mod tests {
     #[test]
     fn a_front_end_that_cannot_be_built_fails_the_run() {
         use crate::analysis::bench::BenchInput;
-        use crate::plan::{BandLayout, BandSpec, FrontEndSpec};
+        use crate::plan::FrontEndSpec;
         use std::sync::atomic::{AtomicUsize, Ordering};
         use std::sync::Arc;
         let input = BenchInput::synthetic(8, 4096.0, 1.0).unwrap();
-        let bands = BandLayout {
-            specs: vec!["octave".parse::<BandSpec>().unwrap()],
-            ..Default::default()
-        }
-        .resolve(input.fs_hz, None)
-        .unwrap()
-        .bands;
+        let bands = octave_bands(input.fs_hz);
         let good = FrontEndSpec::default()
             .factory(input.fs_hz, bands.clone())
             .unwrap();
