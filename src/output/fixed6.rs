@@ -59,9 +59,9 @@ fn millionths(a: f64) -> u64 {
     // Exact: the error of a product of normal numbers is representable (no underflow here).
     let e = a.mul_add(1e6, -p);
     let floor = p.floor();
-    // p's fraction r is a multiple of ulp(p) ≤ 2^-1 and |e| ≤ ulp(p) / 2: unless r is exactly
-    // one half, r + e lies on the same side of one half as r (and r = 0 stays within |e| of the
-    // integer below... or above: it rounds to `floor` either way).
+    // The exact product is floor + r + e. p's fraction r is a multiple of ulp(p) ≤ 2^-1 and
+    // |e| ≤ ulp(p) / 2, so unless r is exactly one half, r + e lies on the same side of one half
+    // as r; r = 0 leaves the product within |e| of `floor`, which it rounds to.
     let r = p - floor;
     let up = if r > 0.5 {
         true
