@@ -121,12 +121,12 @@ pub(crate) fn peak_or_zero(values: &[f64]) -> f64 {
 /// maximum.
 pub(crate) fn max_ignoring_nan(values: &[f64]) -> f64 {
     use crate::frontend::simd::Isa;
-    match Isa::detected() {
+    match Isa::detect() {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `Isa::detected` found AVX-512F on this CPU.
+        // SAFETY: `Isa::detect` found AVX-512F on this CPU.
         Isa::Avx512 => unsafe { max_avx512(values) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `Isa::detected` found AVX2 on this CPU.
+        // SAFETY: `Isa::detect` found AVX2 on this CPU.
         Isa::Avx2Fma => unsafe { max_avx2(values) },
         Isa::Generic => max_in_lanes::<8>(values),
     }

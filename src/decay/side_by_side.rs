@@ -29,7 +29,7 @@ fn add_lanes<const L: usize>(hi: &mut [f64; L], lo: &mut [f64; L], x: [f64; L]) 
 /// Runs `$body::<L>(first, values)` with the widest lanes this CPU has (8 with AVX-512, else 4).
 macro_rules! with_lanes {
     ($body:ident, $first:expr => $ty:ty, $values:expr) => {{
-        match Isa::detected() {
+        match Isa::detect() {
             #[cfg(target_arch = "x86_64")]
             Isa::Avx512 => {
                 #[target_feature(enable = "avx512f")]

@@ -94,26 +94,23 @@ pub(crate) enum Isa {
 impl Isa {
     /// The best instruction set of this CPU, capped by the environment variable
     /// `DAMPSCOPE_SIMD` (`generic` or `avx2`; for benchmarks and bit-reproducible runs across
-    /// machines).
+    /// machines). Found once per process (reading the environment and asking the CPU each time
+    /// cost more than the small loops dispatched per call).
     pub(crate) fn detect() -> Isa {
-        let cap = std::env::var("DAMPSCOPE_SIMD").unwrap_or_default();
-        Isa::available()
-            .into_iter()
-            .rev()
-            .find(|isa| match cap.as_str() {
-                "generic" => *isa == Isa::Generic,
-                #[cfg(target_arch = "x86_64")]
-                "avx2" => *isa != Isa::Avx512,
-                _ => true,
-            })
-            .unwrap_or(Isa::Generic)
-    }
-
-    /// [`Isa::detect`] once per process (it reads the environment and asks the CPU each time):
-    /// for loops small enough to be dispatched per call.
-    pub(crate) fn detected() -> Isa {
         static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
-        *ISA.get_or_init(Isa::detect)
+        *ISA.get_or_init(|| {
+            let cap = std::env::var("DAMPSCOPE_SIMD").unwrap_or_default();
+            Isa::available()
+                .into_iter()
+                .rev()
+                .find(|isa| match cap.as_str() {
+                    "generic" => *isa == Isa::Generic,
+                    #[cfg(target_arch = "x86_64")]
+                    "avx2" => *isa != Isa::Avx512,
+                    _ => true,
+                })
+                .unwrap_or(Isa::Generic)
+        })
     }
 
     /// The instruction sets this CPU can run, from the most portable.
@@ -135,18 +132,18 @@ impl Isa {
     }
 }
 
-/// Runs `f` compiled for this CPU's widest vectors ([`Isa::detected`]): a plain loop over
+/// Runs `f` compiled for this CPU's widest vectors ([`Isa::detect`]): a plain loop over
 /// `f64`s inside it is auto-vectorised with AVX-512 or AVX2 instead of the two-value SSE2 of
 /// portable x86-64 code (where a NaN or finiteness test on 64-bit values even takes integer
 /// shuffles). `f` is inlined into the feature-enabled copy; same arithmetic, same results.
 #[inline(always)]
 pub(crate) fn in_wide_vectors<R>(f: impl FnOnce() -> R) -> R {
-    match Isa::detected() {
+    match Isa::detect() {
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `Isa::detected` found AVX-512F on this CPU.
+        // SAFETY: `Isa::detect` found AVX-512F on this CPU.
         Isa::Avx512 => unsafe { run_avx512(f) },
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: `Isa::detected` found AVX2 and FMA on this CPU.
+        // SAFETY: `Isa::detect` found AVX2 and FMA on this CPU.
         Isa::Avx2Fma => unsafe { run_avx2(f) },
         Isa::Generic => f(),
     }
