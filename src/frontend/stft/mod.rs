@@ -11,6 +11,7 @@
 use std::sync::Arc;
 
 mod kernels;
+mod prime_factor;
 mod tables;
 mod transform;
 

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use realfft::{RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex;
 
+use super::prime_factor::PrimeFactorFft;
 use super::{band_weights, BandBins};
 use crate::frontend::Band;
 
@@ -60,6 +61,19 @@ pub(super) fn shared_complex_plan(nfft: usize) -> Arc<dyn rustfft::Fft<f64>> {
         Ok(mut p) => p.plan_fft_forward(nfft),
         Err(_) => rustfft::FftPlanner::new().plan_fft_forward(nfft),
     }
+}
+
+/// The prime-factor plan of an odd length (see [`super::prime_factor`]), made once per length in
+/// the process; `None` where it does not apply or is not the faster transform on this CPU (it
+/// beats rustfft's plan only in AVX-512 lanes: 1.7 against 2.2 µs for 819 points).
+pub(super) fn shared_prime_factor(nfft: usize) -> Option<Arc<PrimeFactorFft>> {
+    static PLANS: SharedTables<usize, Option<Arc<PrimeFactorFft>>> = std::sync::OnceLock::new();
+    #[cfg(target_arch = "x86_64")]
+    if crate::frontend::simd::Isa::detect() == crate::frontend::simd::Isa::Avx512 {
+        return shared(&PLANS, nfft, || PrimeFactorFft::new(nfft).map(Arc::new));
+    }
+    let _ = (&PLANS, nfft);
+    None
 }
 
 /// realfft's post-processing twiddles for a real FFT of even length `nfft`: e^{−2πik/nfft} / 2

@@ -1,0 +1,147 @@
+//! The three kinds of stage of the prime-factor FFT, each the R-point DFTs of its lines with
+//! one line per vector lane ([`Lanes`]). All are `unsafe`: they run inside a function compiled
+//! for `V`'s instruction set.
+
+use rustfft::num_complex::Complex;
+
+use super::lanes::Lanes;
+use super::{Stage, PAD};
+
+/// R values of a vector of lines, split into real and imaginary parts.
+struct Line<V, const R: usize> {
+    re: [V; R],
+    im: [V; R],
+}
+
+impl<V: Lanes, const R: usize> Line<V, R> {
+    #[inline(always)]
+    unsafe fn zero() -> Self {
+        let zero = V::splat(0.0);
+        Line {
+            re: [zero; R],
+            im: [zero; R],
+        }
+    }
+}
+
+/// Any axis but the innermost, in place: for each outer index, its lines are the `inner`
+/// contiguous positions (a multiple of [`PAD`]), a vector at a time.
+#[inline(always)]
+pub(super) unsafe fn in_place<V: Lanes, const R: usize, const H: usize>(
+    stage: &Stage,
+    re: &mut [f64],
+    im: &mut [f64],
+) {
+    let inner = stage.inner;
+    debug_assert!(inner.is_multiple_of(V::WIDTH));
+    for outer in 0..stage.outer {
+        let base = outer * R * inner;
+        for start in (base..base + inner).step_by(V::WIDTH) {
+            let mut x = Line::<V, R>::zero();
+            for j in 0..R {
+                x.re[j] = V::load(re, start + j * inner);
+                x.im[j] = V::load(im, start + j * inner);
+            }
+            let y = dft::<V, R, H>(&x, stage);
+            for k in 0..R {
+                y.re[k].store(re, start + k * inner);
+                y.im[k].store(im, start + k * inner);
+            }
+        }
+    }
+}
+
+/// The innermost axis, padded to a multiple of [`PAD`]: line L is positions L · pad … L · pad +
+/// R − 1, and its bin k goes to `spectrum[scatter[L · R + k]]`.
+#[inline(always)]
+pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
+    stage: &Stage,
+    re: &[f64],
+    im: &[f64],
+    scatter: &[u32],
+    spectrum: &mut [Complex<f64>],
+) {
+    let (lines, pad) = (stage.outer, R.next_multiple_of(PAD));
+    for start in (0..lines).step_by(V::WIDTH) {
+        let lanes = V::WIDTH.min(lines - start);
+        let value = |v: &[f64], l: usize, j: usize| {
+            if l < lanes {
+                v[(start + l) * pad + j]
+            } else {
+                0.0
+            }
+        };
+        let mut x = Line::<V, R>::zero();
+        if lanes == V::WIDTH {
+            for chunk in (0..R).step_by(8) {
+                let at = start * pad + chunk;
+                let (cols_re, cols_im) =
+                    (V::load_columns(re, at, pad), V::load_columns(im, at, pad));
+                let end = R.min(chunk + 8);
+                x.re[chunk..end].copy_from_slice(&cols_re[..end - chunk]);
+                x.im[chunk..end].copy_from_slice(&cols_im[..end - chunk]);
+            }
+        } else {
+            for j in 0..R {
+                x.re[j] = V::from_fn(|l| value(re, l, j));
+                x.im[j] = V::from_fn(|l| value(im, l, j));
+            }
+        }
+        let y = dft::<V, R, H>(&x, stage);
+        let bins = &scatter[start * R..(start + lanes) * R];
+        for k in 0..R {
+            let (y_re, y_im) = (y.re[k].to_array(), y.im[k].to_array());
+            for l in 0..lanes {
+                spectrum[bins[l * R + k] as usize] = Complex::new(y_re[l], y_im[l]);
+            }
+        }
+    }
+}
+
+/// The forward R-point DFT of each lane, X_k = Σ_j x_j e^{−2πi jk/R}, as
+/// x₀ + Σ_{j=1}^{H} (x_j + x_{R−j}) cos θ − i (x_j − x_{R−j}) sin θ with θ = 2π jk / R,
+/// H = (R − 1)/2.
+#[inline(always)]
+unsafe fn dft<V: Lanes, const R: usize, const H: usize>(
+    x: &Line<V, R>,
+    stage: &Stage,
+) -> Line<V, R> {
+    let (cos, sin) = (&stage.cos[..H * H], &stage.sin[..H * H]);
+    let zero = V::splat(0.0);
+    let (mut sum_re, mut sum_im, mut dif_re, mut dif_im) =
+        ([zero; H], [zero; H], [zero; H], [zero; H]);
+    let mut y = Line::<V, R> { re: x.re, im: x.im };
+    for j in 0..H {
+        let (p, q) = (j + 1, R - 1 - j);
+        sum_re[j] = x.re[p].add(x.re[q]);
+        sum_im[j] = x.im[p].add(x.im[q]);
+        dif_re[j] = x.re[p].sub(x.re[q]);
+        dif_im[j] = x.im[p].sub(x.im[q]);
+        y.re[0] = y.re[0].add(sum_re[j]);
+        y.im[0] = y.im[0].add(sum_im[j]);
+    }
+    // The real parts of the outputs need only the real sums and imaginary differences, the
+    // imaginary parts the other two: one half after the other, twelve inputs live at a time
+    // for R = 13 (all four at once did not fit in the registers).
+    for k in 0..H {
+        let (mut a, mut b) = (x.re[0], V::splat(0.0));
+        for j in 0..H {
+            a = a.mul_add(V::splat(cos[k * H + j]), sum_re[j]);
+            b = b.mul_add(V::splat(sin[k * H + j]), dif_im[j]);
+        }
+        // X_k = A − iB, X_{R−k} = A + iB: real parts A_re ± B_im.
+        y.re[k + 1] = a.add(b);
+        y.re[R - 1 - k] = a.sub(b);
+    }
+    for k in 0..H {
+        let (mut a, mut b) = (x.im[0], V::splat(0.0));
+        for j in 0..H {
+            a = a.mul_add(V::splat(cos[k * H + j]), sum_im[j]);
+            b = b.mul_add(V::splat(sin[k * H + j]), dif_re[j]);
+        }
+        // Imaginary parts A_im ∓ B_re.
+        y.im[k + 1] = a.sub(b);
+        y.im[R - 1 - k] = a.add(b);
+    }
+    y
+}
