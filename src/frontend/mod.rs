@@ -113,6 +113,16 @@ pub trait FrontEnd: Send {
     /// Feeds samples of the current decay. Completed frames go to `sink` in time order.
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink);
 
+    /// [`FrontEnd::process`], told the samples that follow (`ahead`: what the next calls will
+    /// pass first, possibly fewer). A front end may compute later frames early with them (the
+    /// STFT of an odd frame length transforms two frames at once), but emits only the frames
+    /// that `samples` and the earlier calls complete: the same frames, at the same calls, as
+    /// [`FrontEnd::process`]. By default the samples ahead are ignored.
+    fn process_ahead(&mut self, samples: &[f64], ahead: &[f64], sink: &mut dyn FrameSink) {
+        let _ = ahead;
+        self.process(samples, sink)
+    }
+
     /// Ends the current decay: emits whatever frames remain (a filter bank that needs the whole
     /// decay emits everything here).
     fn finish(&mut self, sink: &mut dyn FrameSink);

@@ -216,12 +216,15 @@ impl ChannelAnalyzer {
         })
     }
 
-    fn feed(&mut self, samples: &[f64]) {
+    /// Feeds decay samples to the front end, with the samples that will follow them (see
+    /// [`FrontEnd::process_ahead`]).
+    fn feed(&mut self, samples: &[f64], ahead: &[f64]) {
         let trackers = &mut self.trackers;
         match &mut self.clock {
-            None => self.front_end.process(samples, trackers),
-            Some(clock) => self.front_end.process(
+            None => self.front_end.process_ahead(samples, ahead, trackers),
+            Some(clock) => self.front_end.process_ahead(
                 samples,
+                ahead,
                 &mut TimedTrackers {
                     trackers,
                     seconds: &mut clock.estimator_s,
@@ -358,7 +361,18 @@ impl ChannelAnalyzer {
                 take = hit;
                 self.retriggered = true;
             }
-            self.feed(&samples[used..used + take]);
+            // What the next chunks will feed, unless the decay ends first: up to its length cap,
+            // nothing past a new hit.
+            let ahead = match scanned {
+                Some(_) => &[][..],
+                None => {
+                    let fed = used + take;
+                    let left = (max - n).saturating_sub(take as u64);
+                    let end = (fed as u64).saturating_add(left).min(samples.len() as u64);
+                    &samples[fed..end as usize]
+                }
+            };
+            self.feed(&samples[used..used + take], ahead);
             used += take;
             if let State::Decaying { samples: n, .. } = &mut self.state {
                 *n += take as u64;

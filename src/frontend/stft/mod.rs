@@ -85,12 +85,26 @@ pub struct StftFrontEnd {
     /// Where the next frame starts in `pending` (samples before it are spent; they are dropped
     /// once they outnumber a window, so that each sample is moved O(1) times).
     next_frame: usize,
+    /// The bands of the frame at `next_frame`, computed early (with samples not yet fed, in one
+    /// transform with the frame before it) and emitted once the input completes that frame;
+    /// valid while `has_early`.
+    early: EarlyFrame,
+    has_early: bool,
+    /// The frame after a lone one, put together from `pending` and the samples ahead.
+    assembled: Vec<f64>,
     energy: Vec<f64>,
     frequency_hz: Vec<f64>,
     sample_rate_hz: f64,
     zero_pad: usize,
     /// Instruction set of the per-frame loops (window, power spectrum).
     isa: Isa,
+}
+
+/// One frame's band figures, kept until the frame may be emitted.
+#[derive(Clone, Debug)]
+struct EarlyFrame {
+    energy: Vec<f64>,
+    frequency_hz: Vec<f64>,
 }
 
 /// Bytes one STFT front end holds: window, FFT buffers and plan, power spectrum, band weights
@@ -160,6 +174,12 @@ impl StftFrontEnd {
             transform: Transform::new(nfft),
             pending: Vec::new(),
             next_frame: 0,
+            early: EarlyFrame {
+                energy: vec![0.0; bands.len()],
+                frequency_hz: vec![f64::NAN; bands.len()],
+            },
+            has_early: false,
+            assembled: Vec::new(),
             energy: vec![0.0; bands.len()],
             frequency_hz: vec![f64::NAN; bands.len()],
             sample_rate_hz,
@@ -206,6 +226,30 @@ impl StftFrontEnd {
             self.take_bands(&buffers.power_b);
             self.emit(sink);
         });
+    }
+
+    /// The frame starting at `pending[start]`, emitted, and the one a hop later, its missing
+    /// samples taken from `ahead`, kept in `early`: one transform for both (at odd lengths a
+    /// lone frame costs a whole complex FFT of its length, as much as two).
+    fn compute_pair_ahead(&mut self, start: usize, ahead: &[f64], sink: &mut dyn FrameSink) {
+        let (w, second) = (self.window.len(), start + self.hop);
+        let have = self.pending.len() - second;
+        let mut assembled = std::mem::take(&mut self.assembled);
+        assembled.clear();
+        assembled.extend_from_slice(&self.pending[second..]);
+        assembled.extend_from_slice(&ahead[..w - have]);
+        with_frame_buffers(|buffers| {
+            let a = &self.pending[start..start + w];
+            self.transform
+                .pair_powers(self.isa, a, &assembled, &self.window, buffers);
+            self.take_bands(&buffers.power);
+            self.emit(sink);
+            self.take_bands(&buffers.power_b);
+        });
+        self.early.energy.copy_from_slice(&self.energy);
+        self.early.frequency_hz.copy_from_slice(&self.frequency_hz);
+        self.has_early = true;
+        self.assembled = assembled;
     }
 
     fn emit(&self, sink: &mut dyn FrameSink) {
@@ -342,13 +386,28 @@ impl FrontEnd for StftFrontEnd {
     }
 
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
+        self.process_ahead(samples, &[], sink)
+    }
+
+    fn process_ahead(&mut self, samples: &[f64], ahead: &[f64], sink: &mut dyn FrameSink) {
         self.pending.extend_from_slice(samples);
         let w = self.window.len();
         let pairs = self.transform.pairs_frames();
         while self.next_frame + w <= self.pending.len() {
-            if pairs && self.next_frame + self.hop + w <= self.pending.len() {
+            if self.has_early {
+                sink.frame(Frame {
+                    energy: &self.early.energy,
+                    frequency_hz: &self.early.frequency_hz,
+                    active: None,
+                });
+                self.has_early = false;
+                self.next_frame += self.hop;
+            } else if pairs && self.next_frame + self.hop + w <= self.pending.len() {
                 self.compute_pair(self.next_frame, sink);
                 self.next_frame += 2 * self.hop;
+            } else if pairs && self.next_frame + self.hop + w <= self.pending.len() + ahead.len() {
+                self.compute_pair_ahead(self.next_frame, ahead, sink);
+                self.next_frame += self.hop;
             } else {
                 self.compute_frame(self.next_frame, sink);
                 self.next_frame += self.hop;
@@ -362,14 +421,15 @@ impl FrontEnd for StftFrontEnd {
     }
 
     fn finish(&mut self, _sink: &mut dyn FrameSink) {
-        // Only whole frames are emitted: a partial last window would bias the energy.
-        self.pending.clear();
-        self.next_frame = 0;
+        // Only whole frames are emitted: a partial last window would bias the energy (and an
+        // early frame was never completed by the input).
+        self.reset();
     }
 
     fn reset(&mut self) {
         self.pending.clear();
         self.next_frame = 0;
+        self.has_early = false;
     }
 
     fn name(&self) -> &'static str {

@@ -101,3 +101,77 @@ fn frame_pairs_equal_single_frames() {
         }
     }
 }
+
+/// Told the samples ahead ([`FrontEnd::process_ahead`]), an odd window transforms a lone frame
+/// with the next one and emits that one only once the input completes it: the same frames, at
+/// the same calls, as without them (to rounding), whether the samples ahead reach the end,
+/// stop short of the next frame's end (a new hit cut the decay), or are none. Windows of 201
+/// samples (pairs through rustfft) and 819 = 9 · 7 · 13 (pairs through the prime-factor FFT on
+/// AVX-512 CPUs).
+#[test]
+fn samples_ahead_change_neither_frames_nor_when_they_leave() {
+    for fs in [1005.0, 4096.0] {
+        let x: Vec<f64> = (0..20_000)
+            .map(|i| {
+                let t = i as f64 / fs;
+                (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * 52.3 * t).sin()
+                    + 0.3 * (-t).exp() * (2.0 * std::f64::consts::PI * 131.0 * t).cos()
+            })
+            .collect();
+        let bands = [
+            Band::new(40.0, 60.0).unwrap(),
+            Band::new(100.0, 200.0).unwrap(),
+        ];
+        // Per call: the frames it emitted.
+        type Calls = Vec<Vec<(Vec<f64>, Vec<f64>)>>;
+        let run = |chunk: usize, ahead_len: Option<usize>| -> Calls {
+            let mut fe = StftFrontEnd::new(StftSettings::default(), fs, &bands).unwrap();
+            assert!(fe.transform.pairs_frames());
+            let mut calls = Vec::new();
+            for start in (0..x.len()).step_by(chunk) {
+                let end = (start + chunk).min(x.len());
+                let mut out = Vec::new();
+                let mut sink =
+                    |f: Frame<'_>| out.push((f.energy.to_vec(), f.frequency_hz.to_vec()));
+                match ahead_len {
+                    None => fe.process(&x[start..end], &mut sink),
+                    Some(n) => {
+                        let ahead = &x[end..end.saturating_add(n).min(x.len())];
+                        fe.process_ahead(&x[start..end], ahead, &mut sink)
+                    }
+                }
+                calls.push(out);
+            }
+            calls
+        };
+        for chunk in [1024, 333, 4096] {
+            let plain = run(chunk, None);
+            let frames: usize = plain.iter().map(Vec::len).sum();
+            assert!(frames > 40, "{fs} Hz: {frames} frames");
+            for ahead_len in [usize::MAX, 100, 0] {
+                let told = run(chunk, Some(ahead_len));
+                assert_eq!(told.len(), plain.len());
+                for (call, (t, p)) in told.iter().zip(&plain).enumerate() {
+                    assert_eq!(
+                        t.len(),
+                        p.len(),
+                        "{fs} Hz chunk {chunk} ahead {ahead_len} call {call}"
+                    );
+                    for ((te, tf), (pe, pf)) in t.iter().zip(p) {
+                        // A transform rounds relative to the frame's energy, not a weak band's.
+                        let scale = pe.iter().fold(0.0f64, |m, &e| m.max(e));
+                        for (a, b) in te.iter().zip(pe) {
+                            assert!((a - b).abs() <= 1e-12 * scale, "{a} vs {b}");
+                        }
+                        for (a, b) in tf.iter().zip(pf) {
+                            assert!(
+                                (a - b).abs() <= 1e-9 || (a.is_nan() && b.is_nan()),
+                                "{a} vs {b}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
