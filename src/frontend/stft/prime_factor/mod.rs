@@ -57,8 +57,9 @@ pub(super) struct PrimeFactorFft {
     /// Positions of the padded array the stages run on.
     positions: usize,
     stages: Vec<Stage>,
-    /// For each position of the padded array, the input index it starts with (N: zero).
-    input_index: Vec<u32>,
+    /// For each input index j < N, its position in the padded array (the other positions hold
+    /// zeros).
+    position_of: Vec<u32>,
     /// Last stage: for its line L and bin k, at `L · r_{S−1} + k`, the output index.
     scatter: Vec<u32>,
 }
@@ -79,6 +80,9 @@ pub(super) struct FramePair<'a> {
 pub(super) struct SplitBuffer {
     re: Vec<f64>,
     im: Vec<f64>,
+    /// The plan whose padding positions hold zeros (its N; 0: none). The stages never write
+    /// anything else there, so the zeros are written once per plan, not per transform.
+    zeros_for: usize,
 }
 
 impl PrimeFactorFft {
@@ -131,7 +135,7 @@ impl PrimeFactorFft {
         // Position p holds input index Σ i_a · N / r_a (mod N); padding positions read input
         // N (a zero).
         let positions = strides[0] * factors[0];
-        let input_index = (0..positions)
+        let input_index: Vec<u32> = (0..positions)
             .map(|p| {
                 if digit(p, axes - 1) >= last {
                     return n as u32;
@@ -140,6 +144,12 @@ impl PrimeFactorFft {
                 (j % n) as u32
             })
             .collect();
+        let mut position_of = vec![0u32; n];
+        for (p, &j) in input_index.iter().enumerate() {
+            if (j as usize) < n {
+                position_of[j as usize] = p as u32;
+            }
+        }
         // Last stage: output bin k (k ≡ K_a mod r_a) ends at Σ K_a · stride_a, which is element
         // p mod pad of line p / pad.
         let mut scatter = vec![0u32; n];
@@ -151,7 +161,7 @@ impl PrimeFactorFft {
             n,
             positions,
             stages,
-            input_index,
+            position_of,
             scatter,
         })
     }
@@ -164,8 +174,13 @@ impl PrimeFactorFft {
         work: &mut SplitBuffer,
         spectrum: &mut Vec<Complex<f64>>,
     ) {
-        work.re.resize(self.positions, 0.0);
-        work.im.resize(self.positions, 0.0);
+        if work.zeros_for != self.n || work.re.len() != self.positions {
+            work.re.clear();
+            work.re.resize(self.positions, 0.0);
+            work.im.clear();
+            work.im.resize(self.positions, 0.0);
+            work.zeros_for = self.n;
+        }
         spectrum.resize(self.n, Complex::new(0.0, 0.0));
         match isa {
             #[cfg(target_arch = "x86_64")]
@@ -195,8 +210,8 @@ impl PrimeFactorFft {
         work: &mut SplitBuffer,
         spectrum: &mut [Complex<f64>],
     ) {
-        let SplitBuffer { re, im } = work;
-        permute_windowed(&self.input_index, input, re, im);
+        let SplitBuffer { re, im, .. } = work;
+        permute_windowed(&self.position_of, input, re, im);
         let (last, others) = self.stages.split_last().expect("two stages or more");
         macro_rules! by_factor {
             ($stage:expr, $f:ident ( $($arg:expr),* )) => {
@@ -218,35 +233,30 @@ impl PrimeFactorFft {
     }
 }
 
-/// `re[p]`, `im[p]` = the windowed frames at input index `index[p]` (zero at or past the
-/// frames' end): windowing and the input permutation in one pass, a value at a time (vector
-/// gathers were slower). Not inlined: inside the stages' function its pointers were spilled and
-/// reloaded for every value.
+/// The windowed frames, value j to `re[position_of[j]]`, `im[position_of[j]]` (zero at or
+/// past the frames' end): windowing and the input permutation in one pass, reading the frames
+/// in order (they stream into the cache) and writing out of order (the array is in the cache
+/// already). Vector gathers, and reading out of order, were slower. Not inlined: inside the
+/// stages' function its pointers were spilled and reloaded for every value.
 #[inline(never)]
-fn permute_windowed(index: &[u32], input: &FramePair<'_>, re: &mut [f64], im: &mut [f64]) {
-    let len = input.a.len().min(input.window.len());
+fn permute_windowed(position_of: &[u32], input: &FramePair<'_>, re: &mut [f64], im: &mut [f64]) {
+    let len = input.a.len().min(input.window.len()).min(position_of.len());
     let (a, window) = (&input.a[..len], &input.window[..len]);
-    let values = index.iter().zip(re.iter_mut()).zip(im.iter_mut());
+    let (head, tail) = position_of.split_at(len);
     match input.b {
         Some(b) => {
-            let b = &b[..len];
-            for ((&i, re), im) in values {
-                let i = i as usize;
-                (*re, *im) = match i < len {
-                    true => (a[i] * window[i], b[i] * window[i]),
-                    false => (0.0, 0.0),
-                };
+            for (((&p, &x), &y), &w) in head.iter().zip(a).zip(&b[..len]).zip(window) {
+                (re[p as usize], im[p as usize]) = (x * w, y * w);
             }
         }
         None => {
-            for ((&i, re), im) in values {
-                let i = i as usize;
-                (*re, *im) = match i < len {
-                    true => (a[i] * window[i], 0.0),
-                    false => (0.0, 0.0),
-                };
+            for ((&p, &x), &w) in head.iter().zip(a).zip(window) {
+                (re[p as usize], im[p as usize]) = (x * w, 0.0);
             }
         }
+    }
+    for &p in tail {
+        (re[p as usize], im[p as usize]) = (0.0, 0.0);
     }
 }
 
