@@ -316,9 +316,14 @@ mod tests {
     /// still fitted, so its spectrum buffer, resized by the odd one, was not checked.
     #[test]
     fn shared_buffers_serve_every_length_in_turn() {
-        let lengths = [200usize, 201, 200, 199, 9, 10, 402, 201, 200];
-        let x: Vec<f64> = (0..402).map(|i| (i as f64 * 0.13).cos() + 0.05).collect();
-        let window = vec![1.0; 402];
+        // 819, 315, 63 and 45 take the prime-factor FFT on AVX-512 CPUs, whose padding positions
+        // are left as they are: 63 (9 · 7) and 45 (9 · 5) both pad to 9 · 8 positions, and 45
+        // has padding where 63 leaves data.
+        let lengths = [
+            200usize, 201, 819, 200, 63, 45, 199, 9, 315, 819, 10, 402, 201, 200,
+        ];
+        let x: Vec<f64> = (0..820).map(|i| (i as f64 * 0.13).cos() + 0.05).collect();
+        let window = vec![1.0; 820];
         let mut shared = FrameBuffers::default();
         for &n in &lengths {
             let transform = Transform::new(n);

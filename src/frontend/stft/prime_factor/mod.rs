@@ -57,8 +57,9 @@ pub(super) struct PrimeFactorFft {
     /// Positions of the padded array the stages run on.
     positions: usize,
     stages: Vec<Stage>,
-    /// For each input index j < N, its position in the padded array (the other positions hold
-    /// zeros).
+    /// For each input index j < N, its position in the padded array. The other positions are
+    /// padding: lines of their own in every stage but the last, which never reads them, so
+    /// whatever they hold never reaches a bin.
     position_of: Vec<u32>,
     /// Last stage: for its line L and bin k, at `L · r_{S−1} + k`, the output index.
     scatter: Vec<u32>,
@@ -80,9 +81,6 @@ pub(super) struct FramePair<'a> {
 pub(super) struct SplitBuffer {
     re: Vec<f64>,
     im: Vec<f64>,
-    /// The plan whose padding positions hold zeros (its N; 0: none). The stages never write
-    /// anything else there, so the zeros are written once per plan, not per transform.
-    zeros_for: usize,
 }
 
 impl PrimeFactorFft {
@@ -174,13 +172,8 @@ impl PrimeFactorFft {
         work: &mut SplitBuffer,
         spectrum: &mut Vec<Complex<f64>>,
     ) {
-        if work.zeros_for != self.n || work.re.len() != self.positions {
-            work.re.clear();
-            work.re.resize(self.positions, 0.0);
-            work.im.clear();
-            work.im.resize(self.positions, 0.0);
-            work.zeros_for = self.n;
-        }
+        work.re.resize(self.positions, 0.0);
+        work.im.resize(self.positions, 0.0);
         spectrum.resize(self.n, Complex::new(0.0, 0.0));
         match isa {
             #[cfg(target_arch = "x86_64")]
@@ -210,7 +203,7 @@ impl PrimeFactorFft {
         work: &mut SplitBuffer,
         spectrum: &mut [Complex<f64>],
     ) {
-        let SplitBuffer { re, im, .. } = work;
+        let SplitBuffer { re, im } = work;
         permute_windowed(&self.position_of, input, re, im);
         let (last, others) = self.stages.split_last().expect("two stages or more");
         macro_rules! by_factor {
