@@ -357,18 +357,16 @@ impl RetriggerWatch {
             return;
         }
         self.close_block();
-        // Whole blocks: those older than the ring's reach are counted, not scanned.
-        let whole = rest.len() / self.block;
-        let skipped = whole.saturating_sub(self.maxima.len());
-        self.block_index += skipped as u64;
-        self.seen += (skipped * self.block) as u64;
-        rest = &rest[skipped * self.block..];
-        while rest.len() >= self.block {
-            let (this, next) = rest.split_at(self.block);
-            self.block_max = super::sample_scan::max_abs_finite(self.isa, this);
-            self.seen += self.block as u64;
-            self.close_block();
-            rest = next;
+        // Whole blocks: those older than the ring's reach are counted, not scanned; the others
+        // closed as `close_block` closes them while the window is not live (into the ring).
+        let skipped = (rest.len() / self.block).saturating_sub(self.maxima.len());
+        let blocks = rest[skipped * self.block..].chunks_exact(self.block);
+        rest = blocks.remainder();
+        self.block_index += (skipped + blocks.len()) as u64;
+        self.seen += ((skipped + blocks.len()) * self.block) as u64;
+        for this in blocks {
+            self.maxima[self.ring_head] = super::sample_scan::max_abs_finite(self.isa, this);
+            self.ring_head = wrap(self.ring_head + 1, self.maxima.len());
         }
         // The start of the next block.
         self.block_max = super::sample_scan::max_abs_finite(self.isa, rest);

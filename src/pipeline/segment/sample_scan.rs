@@ -14,29 +14,44 @@ const LANES: usize = 8;
 /// for the lanes to pay for the call.
 const SHORT_SCAN: usize = 32;
 
-/// The largest |x| over the finite samples of `x` (non-finite samples count as 0); 0 if empty.
-pub(crate) fn max_abs_finite(isa: Isa, x: &[f64]) -> f64 {
-    /// |v| for a finite v, else 0 (`a < ∞` is false for ±∞ and NaN).
-    #[inline(always)]
-    fn magnitude(v: f64) -> f64 {
-        let a = v.abs();
-        if a < f64::INFINITY {
+/// |v| for a finite v, else 0 (`a < ∞` is false for ±∞ and NaN).
+#[inline(always)]
+fn magnitude(v: f64) -> f64 {
+    let a = v.abs();
+    if a < f64::INFINITY {
+        a
+    } else {
+        0.0
+    }
+}
+
+/// [`max_abs_finite`] one sample after the other.
+#[inline(always)]
+fn serial_max_abs(x: &[f64]) -> f64 {
+    x.iter().fold(0.0f64, |best, &v| {
+        let a = magnitude(v);
+        if a > best {
             a
         } else {
-            0.0
+            best
         }
+    })
+}
+
+/// The largest |x| over the finite samples of `x` (non-finite samples count as 0); 0 if empty.
+/// Inlined: a short slice is scanned in place (the new-hit watch at low rates scans blocks of a
+/// few samples, and the call cost more than the scan).
+#[inline]
+pub(crate) fn max_abs_finite(isa: Isa, x: &[f64]) -> f64 {
+    if x.len() < SHORT_SCAN {
+        serial_max_abs(x)
+    } else {
+        max_abs_in_lanes(isa, x)
     }
-    #[inline(always)]
-    fn serial(x: &[f64]) -> f64 {
-        x.iter().fold(0.0f64, |best, &v| {
-            let a = magnitude(v);
-            if a > best {
-                a
-            } else {
-                best
-            }
-        })
-    }
+}
+
+/// [`max_abs_finite`] of a slice long enough for the lanes.
+fn max_abs_in_lanes(isa: Isa, x: &[f64]) -> f64 {
     #[inline(always)]
     fn run(x: &[f64]) -> f64 {
         let mut lanes = [0.0f64; LANES];
@@ -48,10 +63,7 @@ pub(crate) fn max_abs_finite(isa: Isa, x: &[f64]) -> f64 {
                 *m = if a > *m { a } else { *m };
             }
         }
-        serial(tail).max(serial(&lanes))
-    }
-    if x.len() < SHORT_SCAN {
-        return serial(x);
+        serial_max_abs(tail).max(serial_max_abs(&lanes))
     }
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
