@@ -62,23 +62,32 @@ fn block_size_does_not_change_frames() {
     // The peak frequency in the first band is the tone's.
     assert!((whole[3].1[0] - 52.0).abs() < 0.3, "{}", whole[3].1[0]);
 }
+/// Two decaying tones, 52.3 Hz and 131 Hz, `n` samples at `fs`.
+fn two_tones(fs: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| {
+            let t = i as f64 / fs;
+            (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * 52.3 * t).sin()
+                + 0.3 * (-t).exp() * (2.0 * std::f64::consts::PI * 131.0 * t).cos()
+        })
+        .collect()
+}
+
+/// A band around each of [`two_tones`].
+fn tone_bands() -> [Band; 2] {
+    [
+        Band::new(40.0, 60.0).unwrap(),
+        Band::new(100.0, 200.0).unwrap(),
+    ]
+}
+
 /// An odd window (201 samples) takes frames in pairs through one complex FFT whenever two
 /// are in hand: fed whole (pairs) or a sample at a time (single real FFTs, the oracle), the
 /// frames agree to rounding and give the same peak frequencies.
 #[test]
 fn frame_pairs_equal_single_frames() {
     let fs = 1005.0;
-    let x: Vec<f64> = (0..4000)
-        .map(|i| {
-            let t = i as f64 / fs;
-            (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * 52.3 * t).sin()
-                + 0.3 * (-t).exp() * (2.0 * std::f64::consts::PI * 131.0 * t).cos()
-        })
-        .collect();
-    let bands = [
-        Band::new(40.0, 60.0).unwrap(),
-        Band::new(100.0, 200.0).unwrap(),
-    ];
+    let (x, bands) = (two_tones(fs, 4000), tone_bands());
     let run = |block: usize| {
         let mut fe = StftFrontEnd::new(StftSettings::default(), fs, &bands).unwrap();
         assert!(fe.transform.pairs_frames() && fe.window_samples() == 201);
@@ -111,17 +120,7 @@ fn frame_pairs_equal_single_frames() {
 #[test]
 fn samples_ahead_change_neither_frames_nor_when_they_leave() {
     for fs in [1005.0, 4096.0] {
-        let x: Vec<f64> = (0..20_000)
-            .map(|i| {
-                let t = i as f64 / fs;
-                (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * 52.3 * t).sin()
-                    + 0.3 * (-t).exp() * (2.0 * std::f64::consts::PI * 131.0 * t).cos()
-            })
-            .collect();
-        let bands = [
-            Band::new(40.0, 60.0).unwrap(),
-            Band::new(100.0, 200.0).unwrap(),
-        ];
+        let (x, bands) = (two_tones(fs, 20_000), tone_bands());
         // Per call: the frames it emitted.
         type Calls = Vec<Vec<(Vec<f64>, Vec<f64>)>>;
         let run = |chunk: usize, ahead_len: Option<usize>| -> Calls {

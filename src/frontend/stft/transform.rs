@@ -95,13 +95,7 @@ impl Transform {
                 real,
                 ..
             } => {
-                buffers.fit_odd(real.as_ref(), None);
-                let input = FramePair {
-                    a: x,
-                    b: None,
-                    window,
-                };
-                plan.transform(isa, &input, &mut buffers.split, &mut buffers.pair);
+                prime_factor_spectrum(plan, real.as_ref(), isa, (x, None), window, buffers);
                 let bins = buffers.power.len();
                 power_spectrum(isa, &mut buffers.power, &buffers.pair[..bins]);
             }
@@ -137,13 +131,7 @@ impl Transform {
                 real,
                 ..
             } => {
-                buffers.fit_odd(real.as_ref(), None);
-                let input = FramePair {
-                    a,
-                    b: Some(b),
-                    window,
-                };
-                plan.transform(isa, &input, &mut buffers.split, &mut buffers.pair);
+                prime_factor_spectrum(plan, real.as_ref(), isa, (a, Some(b)), window, buffers);
                 unpack_pair_powers(isa, &buffers.pair, &mut buffers.power, &mut buffers.power_b);
             }
             Transform::Odd {
@@ -163,6 +151,21 @@ impl Transform {
             }
         }
     }
+}
+
+/// `buffers.pair` = the prime-factor FFT of a · window + i b · window (b none: zero), the
+/// powers sized for the lone frame's real transform `real`.
+fn prime_factor_spectrum(
+    plan: &PrimeFactorFft,
+    real: &dyn RealToComplex<f64>,
+    isa: Isa,
+    (a, b): (&[f64], Option<&[f64]>),
+    window: &[f64],
+    buffers: &mut FrameBuffers,
+) {
+    buffers.fit_odd(real, None);
+    let input = FramePair { a, b, window };
+    plan.transform(isa, &input, &mut buffers.split, &mut buffers.pair);
 }
 
 /// The buffers of one frame's transform (windowed frame, spectrum, FFT scratch, power). No frame

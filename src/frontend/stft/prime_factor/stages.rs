@@ -120,28 +120,40 @@ unsafe fn dft<V: Lanes, const R: usize, const H: usize>(
         y.re[0] = y.re[0].add(sum_re[j]);
         y.im[0] = y.im[0].add(sum_im[j]);
     }
-    // The real parts of the outputs need only the real sums and imaginary differences, the
-    // imaginary parts the other two: one half after the other, twelve inputs live at a time
-    // for R = 13 (all four at once did not fit in the registers).
+    // X_k = A − iB, X_{R−k} = A + iB. The real parts need only the real sums and imaginary
+    // differences, the imaginary parts the other two: one half after the other, twelve inputs
+    // live at a time for R = 13 (all four at once did not fit in the registers).
+    let (a, b) = half_sums::<V, H>(x.re[0], &sum_re, &dif_im, cos, sin);
     for k in 0..H {
-        let (mut a, mut b) = (x.re[0], V::splat(0.0));
-        for j in 0..H {
-            a = a.mul_add(V::splat(cos[k * H + j]), sum_re[j]);
-            b = b.mul_add(V::splat(sin[k * H + j]), dif_im[j]);
-        }
-        // X_k = A − iB, X_{R−k} = A + iB: real parts A_re ± B_im.
-        y.re[k + 1] = a.add(b);
-        y.re[R - 1 - k] = a.sub(b);
+        // Real parts A_re ± B_im.
+        y.re[k + 1] = a[k].add(b[k]);
+        y.re[R - 1 - k] = a[k].sub(b[k]);
     }
+    let (a, b) = half_sums::<V, H>(x.im[0], &sum_im, &dif_re, cos, sin);
     for k in 0..H {
-        let (mut a, mut b) = (x.im[0], V::splat(0.0));
-        for j in 0..H {
-            a = a.mul_add(V::splat(cos[k * H + j]), sum_im[j]);
-            b = b.mul_add(V::splat(sin[k * H + j]), dif_re[j]);
-        }
         // Imaginary parts A_im ∓ B_re.
-        y.im[k + 1] = a.sub(b);
-        y.im[R - 1 - k] = a.add(b);
+        y.im[k + 1] = a[k].sub(b[k]);
+        y.im[R - 1 - k] = a[k].add(b[k]);
     }
     y
+}
+
+/// For k = 1 … H: A_k = x₀ + Σ_j cos(2π jk / R) · sum_j and B_k = Σ_j sin(2π jk / R) · dif_j
+/// (one of the real and imaginary halves of [`dft`]).
+#[inline(always)]
+unsafe fn half_sums<V: Lanes, const H: usize>(
+    x0: V,
+    sum: &[V; H],
+    dif: &[V; H],
+    cos: &[f64],
+    sin: &[f64],
+) -> ([V; H], [V; H]) {
+    let (mut a, mut b) = ([x0; H], [V::splat(0.0); H]);
+    for k in 0..H {
+        for j in 0..H {
+            a[k] = a[k].mul_add(V::splat(cos[k * H + j]), sum[j]);
+            b[k] = b[k].mul_add(V::splat(sin[k * H + j]), dif[j]);
+        }
+    }
+    (a, b)
 }
