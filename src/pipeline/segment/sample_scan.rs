@@ -39,9 +39,10 @@ fn serial_max_abs(x: &[f64]) -> f64 {
 }
 
 /// The largest |x| over the finite samples of `x` (non-finite samples count as 0); 0 if empty.
-/// Inlined: a short slice is scanned in place (the new-hit watch at low rates scans blocks of a
-/// few samples, and the call cost more than the scan).
-#[inline]
+/// Always inlined: a short slice is scanned in place (the new-hit watch at low rates scans
+/// blocks of a few samples, and the call cost more than the scan; as a mere `#[inline]` hint it
+/// stayed a call, 2.9 % of an STFT run at 4096 Hz).
+#[inline(always)]
 pub(crate) fn max_abs_finite(isa: Isa, x: &[f64]) -> f64 {
     if x.len() < SHORT_SCAN {
         serial_max_abs(x)
