@@ -11,7 +11,7 @@
 //!   frames share one (one as the real part, one as the imaginary part) whenever both are in
 //!   hand; a lone frame takes realfft's. Where the length is a product of small coprime factors
 //!   (819 = 9 · 7 · 13 at 4096 Hz) and the CPU has AVX-512, both take the prime-factor FFT of
-//!   [`super::prime_factor`] instead (23 % faster than rustfft's plan of 819, windowing
+//!   [`super::prime_factor`] instead (a quarter faster than rustfft's plan of 819, windowing
 //!   included).
 
 use std::sync::Arc;

@@ -16,7 +16,7 @@
 //!   scatters its outputs straight to their bins (the output permutation is a scatter anyway).
 //!
 //! rustfft's mixed-radix plan of 819 points runs its 13-point butterflies one at a time in
-//! scalar code, half of its time: this transform takes 1.7 µs against its 2.2 (windowing
+//! scalar code, half of its time: this transform takes 1.6 µs against its 2.2 (windowing
 //! included, one core of the AVX-512 machine of the README). With four AVX2 lanes it was no
 //! faster than rustfft, so only AVX-512 CPUs use it ([`super::tables::shared_prime_factor`]);
 //! the plain `f64` lanes are the portable reference its tests run on any CPU.
