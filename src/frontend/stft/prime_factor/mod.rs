@@ -130,23 +130,12 @@ impl PrimeFactorFft {
                 stage
             })
             .collect();
-        // Position p holds input index Σ i_a · N / r_a (mod N); padding positions read input
-        // N (a zero).
+        // Position p (not padding) holds input index Σ i_a · N / r_a (mod N).
         let positions = strides[0] * factors[0];
-        let input_index: Vec<u32> = (0..positions)
-            .map(|p| {
-                if digit(p, axes - 1) >= last {
-                    return n as u32;
-                }
-                let j: usize = (0..axes).map(|a| digit(p, a) * (n / factors[a])).sum();
-                (j % n) as u32
-            })
-            .collect();
         let mut position_of = vec![0u32; n];
-        for (p, &j) in input_index.iter().enumerate() {
-            if (j as usize) < n {
-                position_of[j as usize] = p as u32;
-            }
+        for p in (0..positions).filter(|&p| digit(p, axes - 1) < last) {
+            let j: usize = (0..axes).map(|a| digit(p, a) * (n / factors[a])).sum();
+            position_of[j % n] = p as u32;
         }
         // Last stage: output bin k (k ≡ K_a mod r_a) ends at Σ K_a · stride_a, which is element
         // p mod pad of line p / pad.

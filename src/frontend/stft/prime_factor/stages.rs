@@ -1,4 +1,4 @@
-//! The three kinds of stage of the prime-factor FFT, each the R-point DFTs of its lines with
+//! The two kinds of stage of the prime-factor FFT, each the R-point DFTs of its lines with
 //! one line per vector lane ([`Lanes`]). All are `unsafe`: they run inside a function compiled
 //! for `V`'s instruction set.
 
