@@ -210,45 +210,39 @@ impl StftFrontEnd {
         self.emit(sink);
     }
 
-    /// The frames starting at `pending[start]` and one hop later, through one transform; each
-    /// emitted as soon as its bands are read.
-    fn compute_pair(&mut self, start: usize, sink: &mut dyn FrameSink) {
+    /// The frames starting at `pending[start]` and one hop later, through one transform (at
+    /// odd lengths a lone frame costs a whole complex FFT of its length, as much as two). The
+    /// first is emitted; the second too when `pending` holds it, else its missing samples are
+    /// taken from `ahead` and its bands kept in `early` until the input completes it.
+    fn compute_pair(&mut self, start: usize, ahead: &[f64], sink: &mut dyn FrameSink) {
         let (w, second) = (self.window.len(), start + self.hop);
+        let in_hand = second + w <= self.pending.len();
+        let mut assembled = std::mem::take(&mut self.assembled);
+        if !in_hand {
+            let have = self.pending.len() - second;
+            assembled.clear();
+            assembled.extend_from_slice(&self.pending[second..]);
+            assembled.extend_from_slice(&ahead[..w - have]);
+        }
         with_frame_buffers(|buffers| {
-            let (a, b) = (
-                &self.pending[start..start + w],
-                &self.pending[second..second + w],
-            );
+            let a = &self.pending[start..start + w];
+            let b = match in_hand {
+                true => &self.pending[second..second + w],
+                false => &assembled[..],
+            };
             self.transform
                 .pair_powers(self.isa, a, b, &self.window, buffers);
             self.take_bands(&buffers.power);
             self.emit(sink);
             self.take_bands(&buffers.power_b);
-            self.emit(sink);
         });
-    }
-
-    /// The frame starting at `pending[start]`, emitted, and the one a hop later, its missing
-    /// samples taken from `ahead`, kept in `early`: one transform for both (at odd lengths a
-    /// lone frame costs a whole complex FFT of its length, as much as two).
-    fn compute_pair_ahead(&mut self, start: usize, ahead: &[f64], sink: &mut dyn FrameSink) {
-        let (w, second) = (self.window.len(), start + self.hop);
-        let have = self.pending.len() - second;
-        let mut assembled = std::mem::take(&mut self.assembled);
-        assembled.clear();
-        assembled.extend_from_slice(&self.pending[second..]);
-        assembled.extend_from_slice(&ahead[..w - have]);
-        with_frame_buffers(|buffers| {
-            let a = &self.pending[start..start + w];
-            self.transform
-                .pair_powers(self.isa, a, &assembled, &self.window, buffers);
-            self.take_bands(&buffers.power);
+        if in_hand {
             self.emit(sink);
-            self.take_bands(&buffers.power_b);
-        });
-        self.early.energy.copy_from_slice(&self.energy);
-        self.early.frequency_hz.copy_from_slice(&self.frequency_hz);
-        self.has_early = true;
+        } else {
+            self.early.energy.copy_from_slice(&self.energy);
+            self.early.frequency_hz.copy_from_slice(&self.frequency_hz);
+            self.has_early = true;
+        }
         self.assembled = assembled;
     }
 
@@ -402,12 +396,10 @@ impl FrontEnd for StftFrontEnd {
                 });
                 self.has_early = false;
                 self.next_frame += self.hop;
-            } else if pairs && self.next_frame + self.hop + w <= self.pending.len() {
-                self.compute_pair(self.next_frame, sink);
-                self.next_frame += 2 * self.hop;
             } else if pairs && self.next_frame + self.hop + w <= self.pending.len() + ahead.len() {
-                self.compute_pair_ahead(self.next_frame, ahead, sink);
-                self.next_frame += self.hop;
+                let both_emitted = self.next_frame + self.hop + w <= self.pending.len();
+                self.compute_pair(self.next_frame, ahead, sink);
+                self.next_frame += if both_emitted { 2 } else { 1 } * self.hop;
             } else {
                 self.compute_frame(self.next_frame, sink);
                 self.next_frame += self.hop;
