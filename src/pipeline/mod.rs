@@ -22,6 +22,7 @@ mod finishing;
 mod order;
 pub mod schema;
 pub mod segment;
+mod thread_heap;
 mod threads;
 
 pub use bands::{analyze_decay, analyze_decay_with};

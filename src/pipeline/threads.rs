@@ -190,6 +190,7 @@ pub fn run_with(
             let input_frames = input_frames.filter(|_| !options.plain_decay_buffers);
             let first = first.take();
             handles.push(scope.spawn(move || {
+                super::thread_heap::advise_huge_pages();
                 // Decay buffers of this worker's channels on huge pages, where the length is
                 // known.
                 let _arena = crate::frontend::decay_arena::install(range.len(), input_frames);
