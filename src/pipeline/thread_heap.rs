@@ -27,9 +27,16 @@ const HUGE_PAGE_BYTES: usize = 2 << 20;
 #[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
 const PROBE_BYTES: usize = 4096;
 
-/// Asks for huge pages on the heap of the calling thread's malloc arena; call it first thing
-/// in a worker thread. Performance only: nothing changes where it does not apply.
-pub(super) fn advise_huge_pages() {
+#[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
+/// Fresh heap memory a thread expects to use (its decoded blocks) from which the first 2 MB
+/// is collapsed at once: below, its few pages fault in cheaper than a collapse (128 pages ×
+/// 1.2 µs against 0.09 ms).
+const COLLAPSE_FROM_BYTES: usize = 512 << 10;
+
+/// Asks for huge pages on the heap of the calling thread's malloc arena, expecting to use
+/// `expected_bytes` of it; call it first thing in a worker thread. Performance only: nothing
+/// changes where it does not apply.
+pub(super) fn advise_huge_pages(expected_bytes: usize) {
     #[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
     {
         let probe: Vec<u8> = Vec::with_capacity(PROBE_BYTES);
@@ -38,7 +45,9 @@ pub(super) fn advise_huge_pages() {
         // that is not wholly mapped the kernel advises the mapped parts or refuses.
         unsafe {
             let heap = heap as *mut libc::c_void;
-            if libc::madvise(heap, HEAP_MAX_BYTES, libc::MADV_HUGEPAGE) == 0 {
+            if libc::madvise(heap, HEAP_MAX_BYTES, libc::MADV_HUGEPAGE) == 0
+                && expected_bytes >= COLLAPSE_FROM_BYTES
+            {
                 libc::madvise(heap, HUGE_PAGE_BYTES, libc::MADV_COLLAPSE);
             }
         }

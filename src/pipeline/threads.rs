@@ -187,10 +187,14 @@ pub fn run_with(
             let (tx, rx) = bounded::<ToWorker>(4);
             worker_txs.push(tx);
             let row_tx = row_tx.clone();
+            // Its decoded blocks: f64 samples of its channels, a block's frames at most.
+            let block_bytes = range.len()
+                * input_frames.map_or(block_frames, |n| n.min(block_frames))
+                * std::mem::size_of::<f64>();
             let input_frames = input_frames.filter(|_| !options.plain_decay_buffers);
             let first = first.take();
             handles.push(scope.spawn(move || {
-                super::thread_heap::advise_huge_pages();
+                super::thread_heap::advise_huge_pages(block_bytes);
                 // Decay buffers of this worker's channels on huge pages, where the length is
                 // known.
                 let _arena = crate::frontend::decay_arena::install(range.len(), input_frames);
