@@ -13,6 +13,7 @@ fn main() {
     // SAFETY: called before any thread exists; M_TOP_PAD takes any non-negative byte count.
     unsafe {
         libc::mallopt(libc::M_TOP_PAD, MALLOC_TOP_PAD_BYTES);
+        libc::mallopt(libc::M_MMAP_THRESHOLD, MALLOC_MMAP_THRESHOLD_BYTES);
     }
     std::process::exit(dampscope::cli::main_exit_code());
 }
@@ -24,3 +25,10 @@ fn main() {
 /// memory: the pages are only reserved until touched.
 #[cfg(all(target_os = "linux", target_env = "gnu"))]
 const MALLOC_TOP_PAD_BYTES: libc::c_int = 16 << 20;
+
+/// Smallest allocation glibc maps on its own instead of taking from a heap (its default: 128
+/// KiB, rising to the largest freed). A reader's blocks are 1 MiB buffers: mapped apart, each
+/// one is 256 page faults and an unmapping; from the thread's heap, on its huge pages
+/// (`pipeline/thread_heap.rs`), they are a fraction of one.
+#[cfg(all(target_os = "linux", target_env = "gnu"))]
+const MALLOC_MMAP_THRESHOLD_BYTES: libc::c_int = 4 << 20;

@@ -222,6 +222,9 @@ pub fn run_with(
         }
         drop(row_tx);
         let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
+            // Its blocks come from its heap (none where the source maps its input): huge pages
+            // asked for, none collapsed ahead.
+            super::thread_heap::advise_huge_pages(0);
             let mut failure = None;
             let mut read_s = 0.0;
             let mut blocks: BlockPool<Block> = BlockPool::new();

@@ -29,7 +29,7 @@ pub struct EncodedFrames {
 impl Default for EncodedFrames {
     fn default() -> Self {
         EncodedFrames {
-            bytes: EncodedBytes::Copied(Vec::new()),
+            bytes: EncodedBytes::Copied(Vec::new(), 0),
             codec: Codec::F32,
             scale: 1.0,
             channels: 0,
@@ -40,7 +40,9 @@ impl Default for EncodedFrames {
 
 /// The frames' bytes: a copy (read from a stream), or a range of a mapped file.
 enum EncodedBytes {
-    Copied(Vec<u8>),
+    /// A buffer and how many of its first bytes are this block's (the rest is room, kept
+    /// initialized so that a reader can fill it without zeroing it first).
+    Copied(Vec<u8>, usize),
     Mapped(Arc<MappedBytes>, Range<usize>),
 }
 
@@ -52,19 +54,20 @@ impl EncodedFrames {
         self.scale = scale;
         self.channels = channels;
         match &mut self.bytes {
-            EncodedBytes::Copied(v) => v.clear(),
-            other => *other = EncodedBytes::Copied(Vec::new()),
+            EncodedBytes::Copied(_, len) => *len = 0,
+            other => *other = EncodedBytes::Copied(Vec::new(), 0),
         }
     }
 
-    /// The frames are a copy of `bytes` (whole frames).
-    pub(crate) fn set_copied(&mut self, bytes: &[u8]) {
-        match &mut self.bytes {
-            EncodedBytes::Copied(v) => {
-                v.clear();
-                v.extend_from_slice(bytes);
-            }
-            other => *other = EncodedBytes::Copied(bytes.to_vec()),
+    /// The frames are the bytes `fill` leaves in the buffer it is given (this block's copy
+    /// buffer, whatever it held): a reader hands its own buffer over instead of copying it.
+    pub(crate) fn set_moved(&mut self, fill: impl FnOnce(&mut Vec<u8>)) {
+        if !matches!(self.bytes, EncodedBytes::Copied(..)) {
+            self.bytes = EncodedBytes::Copied(Vec::new(), 0);
+        }
+        if let EncodedBytes::Copied(v, len) = &mut self.bytes {
+            fill(v);
+            *len = v.len();
         }
     }
 
@@ -75,7 +78,7 @@ impl EncodedFrames {
 
     fn bytes(&self) -> &[u8] {
         match &self.bytes {
-            EncodedBytes::Copied(v) => v,
+            EncodedBytes::Copied(v, len) => &v[..*len],
             EncodedBytes::Mapped(map, range) => &map.bytes()[range.clone()],
         }
     }

@@ -233,12 +233,11 @@ pub(crate) struct FrameReader<R> {
     announced_bytes: Option<u64>,
     /// Bytes consumed from the reader.
     bytes_read: u64,
-    /// Bytes buffered in `buf` that do not yet make a whole frame (carried to the next call).
-    have: usize,
     frames_read: u64,
     pending: Option<SourceError>,
     done: bool,
-    buf: Vec<u8>,
+    /// Bytes read and not yet handed out: between calls, only the start of a partial frame.
+    read: BufferedFrames,
     what: String,
     /// The input as a mapped file, and how many of its bytes were decoded: then `reader` and
     /// `buf` are unused and blocks are decoded straight from the mapping.
@@ -247,16 +246,50 @@ pub(crate) struct FrameReader<R> {
 
 /// Where the whole frames of one read are: in the reader's buffer, or a range of the mapping.
 enum FrameBytes<'a> {
-    Buffered(&'a [u8]),
+    Buffered(&'a mut BufferedFrames),
     Mapped(&'a Arc<MappedBytes>, std::ops::Range<usize>),
 }
 
 impl FrameBytes<'_> {
     fn bytes(&self) -> &[u8] {
         match self {
-            FrameBytes::Buffered(b) => b,
+            FrameBytes::Buffered(b) => b.whole_frames(),
             FrameBytes::Mapped(m, range) => &m.bytes()[range.clone()],
         }
+    }
+}
+
+/// A stream reader's buffer: `whole` bytes of whole frames, then the start of a partial frame,
+/// `have` bytes in all.
+struct BufferedFrames {
+    buf: Vec<u8>,
+    whole: usize,
+    have: usize,
+}
+
+impl BufferedFrames {
+    fn whole_frames(&self) -> &[u8] {
+        &self.buf[..self.whole]
+    }
+
+    /// Leaves the whole frames in `into` without copying them (the two buffers trade places,
+    /// `into`'s old bytes are lost) and the partial frame at the start of the reader's new
+    /// buffer, so that `whole` = 0. A 1 MiB copy per block saved.
+    fn move_whole_into(&mut self, into: &mut Vec<u8>) {
+        std::mem::swap(&mut self.buf, into);
+        let partial = self.have - self.whole;
+        if self.buf.len() < partial {
+            self.buf.resize(partial, 0);
+        }
+        self.buf[..partial].copy_from_slice(&into[self.whole..self.have]);
+        into.truncate(self.whole);
+        (self.whole, self.have) = (0, partial);
+    }
+
+    /// Moves the partial frame to the start (after the whole frames were used in place).
+    fn keep_partial(&mut self) {
+        self.buf.copy_within(self.whole..self.have, 0);
+        (self.whole, self.have) = (0, self.have - self.whole);
     }
 }
 
@@ -277,11 +310,14 @@ impl<R: Read> FrameReader<R> {
             scale,
             announced_bytes,
             bytes_read: 0,
-            have: 0,
+            read: BufferedFrames {
+                buf: Vec::new(),
+                whole: 0,
+                have: 0,
+            },
             frames_read: 0,
             pending: None,
             done: false,
-            buf: Vec::new(),
             what,
             mapped: None,
         }
@@ -381,7 +417,7 @@ impl<R: Read> FrameReader<R> {
     ) -> Result<bool, SourceError> {
         out.reset(self.codec, self.scale, self.channels);
         self.next_frames(max_frames, |frames| match frames {
-            FrameBytes::Buffered(bytes) => out.set_copied(bytes),
+            FrameBytes::Buffered(frames) => out.set_moved(|into| frames.move_whole_into(into)),
             FrameBytes::Mapped(map, range) => out.set_mapped(map.clone(), range),
         })
     }
@@ -407,23 +443,24 @@ impl<R: Read> FrameReader<R> {
             return self.next_mapped_frames(max_frames.clamp(1, cap_frames), take);
         }
         let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb);
+        let read = &mut self.read;
         if let Some(n) = self.announced_bytes {
-            want = want.min(self.have + (n - self.bytes_read) as usize);
+            want = want.min(read.have + (n - self.bytes_read) as usize);
         }
-        if self.buf.len() < want {
-            self.buf.resize(want, 0);
+        if read.buf.len() < want {
+            read.buf.resize(want, 0);
         }
         // Read until at least one whole frame is buffered (or `want` bytes, or the end): a live
         // stream yields what has arrived instead of waiting for a full block.
         let mut eof = false;
-        while self.have < want && self.have < fb {
-            match self.reader.read(&mut self.buf[self.have..want]) {
+        while read.have < want && read.have < fb {
+            match self.reader.read(&mut read.buf[read.have..want]) {
                 Ok(0) => {
                     eof = true;
                     break;
                 }
                 Ok(k) => {
-                    self.have += k;
+                    read.have += k;
                     self.bytes_read += k as u64;
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
@@ -435,8 +472,8 @@ impl<R: Read> FrameReader<R> {
                 }
             }
         }
-        let whole = self.have / fb;
-        let partial = self.have % fb;
+        let whole = read.have / fb;
+        let partial = read.have % fb;
         let announced_done = self.announced_bytes.is_some_and(|n| self.bytes_read == n);
         if eof || announced_done {
             self.done = true;
@@ -444,9 +481,12 @@ impl<R: Read> FrameReader<R> {
                 self.pending = Some(self.truncation(partial, whole));
             }
         }
-        take(FrameBytes::Buffered(&self.buf[..whole * fb]));
-        self.buf.copy_within(whole * fb..self.have, 0);
-        self.have = partial;
+        let read = &mut self.read;
+        read.whole = whole * fb;
+        take(FrameBytes::Buffered(read));
+        if read.whole > 0 {
+            read.keep_partial();
+        }
         self.frames_read += whole as u64;
         if whole == 0 {
             return super::end_of_input(&mut self.pending, self.frames_read, &self.what);

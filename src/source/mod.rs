@@ -177,6 +177,7 @@ pub mod mapped;
 pub mod memory;
 pub mod noise;
 pub mod open;
+mod pipe;
 pub mod raw;
 pub mod recording_set;
 pub mod synth;

@@ -111,11 +111,14 @@ impl<R: Read + Send> RawSource<R> {
     where
         R: std::os::fd::AsFd,
     {
-        let mapped = file
-            .as_fd()
-            .try_clone_to_owned()
-            .ok()
-            .and_then(|fd| super::mapped::MappedBytes::rest_of(&std::fs::File::from(fd)));
+        let mapped = file.as_fd().try_clone_to_owned().ok().and_then(|fd| {
+            let file = std::fs::File::from(fd);
+            let mapped = super::mapped::MappedBytes::rest_of(&file);
+            if mapped.is_none() {
+                super::pipe::widen(&file);
+            }
+            mapped
+        });
         Self::with_frames(file, mapped, what.into(), format, fs_hz, channels)
     }
 
@@ -316,5 +319,87 @@ mod tests {
             assert!(!a.is_empty());
         }
         std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A reader that yields its bytes in pieces of varying length, as a pipe does.
+    struct Pieces {
+        bytes: std::io::Cursor<Vec<u8>>,
+        lengths: std::iter::Cycle<std::vec::IntoIter<usize>>,
+    }
+
+    impl std::io::Read for Pieces {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            let n = self.lengths.next().unwrap_or(1).min(buf.len());
+            self.bytes.read(&mut buf[..n])
+        }
+    }
+
+    /// Each channel's samples (as bits) over all blocks, then how the input ended.
+    fn samples_of(mut next: impl FnMut(&mut Block) -> Option<Result<bool, SourceError>>) -> String {
+        let mut block = Block::default();
+        let mut all: Vec<Vec<u64>> = Vec::new();
+        let end = loop {
+            match next(&mut block) {
+                Some(Ok(true)) => {
+                    all.resize_with(block.channels.len(), Vec::new);
+                    for (a, ch) in all.iter_mut().zip(&block.channels) {
+                        a.extend(ch.iter().map(|v| v.to_bits()));
+                    }
+                }
+                Some(Ok(false)) => break "end".to_string(),
+                Some(Err(e)) => break format!("error: {e}"),
+                None => break "no encoded blocks".to_string(),
+            }
+        };
+        format!("{all:?} {end}")
+    }
+
+    /// A stream that arrives in pieces of 1 byte to 64 KiB, cutting frames anywhere, gives the
+    /// samples and the end of the same bytes read whole, whether the reader decodes its blocks
+    /// or hands them over encoded (its buffer then trades places with the block's each time, and
+    /// a partial frame must move with it), with one block buffer reused throughout.
+    #[test]
+    fn a_stream_in_pieces_reads_as_the_same_bytes_whole() {
+        for (n_ch, frames, stray) in [(8usize, 20_000usize, 0usize), (3, 7001, 5), (64, 900, 7)] {
+            let mut bytes = Vec::new();
+            for i in 0..frames * n_ch {
+                bytes.extend_from_slice(&((i % 1013) as f32 * 0.25 - 100.0).to_le_bytes());
+            }
+            bytes.extend(std::iter::repeat_n(9u8, stray));
+            let whole = || {
+                let cursor = std::io::Cursor::new(bytes.clone());
+                RawSource::new(cursor, "x", RawFormat::F32, 1000.0, n_ch).unwrap()
+            };
+            let pieces = || {
+                let lengths = vec![1usize, 7, 333, 4096, 65_536, 13, 100_003, 2];
+                let reader = Pieces {
+                    bytes: std::io::Cursor::new(bytes.clone()),
+                    lengths: lengths.into_iter().cycle(),
+                };
+                RawSource::new(reader, "x", RawFormat::F32, 1000.0, n_ch).unwrap()
+            };
+            let mut source = whole();
+            let expected = samples_of(|b| Some(source.read_block(1000, b)));
+            let mut source = pieces();
+            let decoded = samples_of(|b| Some(source.read_block(1000, b)));
+            let mut source = pieces();
+            let mut frames_buf = crate::source::encoded::EncodedFrames::default();
+            let encoded = samples_of(|b| {
+                let got = source.read_encoded_block(4096, &mut frames_buf)?;
+                if matches!(got, Ok(true)) {
+                    frames_buf.decode_into(0..frames_buf.channels(), b);
+                }
+                Some(got)
+            });
+            let case = format!("{n_ch} ch, {frames} frames, {stray} stray");
+            assert_eq!(
+                expected.contains("stray"),
+                stray > 0,
+                "{case}: {}",
+                &expected[expected.len() - 60..]
+            );
+            assert_eq!(decoded, expected, "{case}, decoded");
+            assert_eq!(encoded, expected, "{case}, encoded");
+        }
     }
 }
