@@ -153,6 +153,11 @@ impl PrimeFactorFft {
         })
     }
 
+    /// Points of the transform.
+    pub(super) fn len(&self) -> usize {
+        self.n
+    }
+
     /// `spectrum` (resized to N) = the DFT of z = a + i b, both windowed ([`FramePair`]).
     pub(super) fn transform(
         &self,
