@@ -254,6 +254,14 @@ impl StftFrontEnd {
         });
     }
 
+    /// The spectrum the bands' bins lie on ([`super::hann_gain`]).
+    fn hann_grid(&self) -> super::hann_gain::HannGrid {
+        super::hann_gain::HannGrid {
+            bin_rad: 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz,
+            window_len: self.window.len(),
+        }
+    }
+
     /// Every band's energy and peak frequency from one frame's power spectrum.
     fn take_bands(&mut self, power: &[f64]) {
         for (k, bb) in self.band_bins.iter().enumerate() {
@@ -435,12 +443,11 @@ impl FrontEnd for StftFrontEnd {
         let bb = &self.band_bins[band];
         let a = sigma_per_s / self.sample_rate_hz;
         let omega = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
-        let bin_rad = 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz;
         super::hann_gain::band_mode_gain(
+            self.isa,
+            self.hann_grid(),
             bb.first_bin,
             &bb.weights,
-            bin_rad,
-            self.window.len(),
             a,
             omega,
         )
@@ -450,13 +457,12 @@ impl FrontEnd for StftFrontEnd {
         let bb = &self.band_bins[band];
         let a = sigma_per_s / self.sample_rate_hz;
         let omega = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
-        let bin_rad = 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz;
         super::hann_gain::band_mode_gain_bound(
+            self.isa,
+            self.hann_grid(),
             bb.first_bin,
             &bb.weights,
             &bb.cumulative,
-            bin_rad,
-            self.window.len(),
             a,
             omega,
         )
