@@ -1,18 +1,24 @@
 //! [`super::image_gain`] eight bins side by side in AVX-512 lanes. Per bin it is a few
 //! products and a division; the scalar loop waits on its own rotation recurrence (~8 cycles a
 //! bin) while the divider idles. Here lane j takes bins g + j, g + j + 8, … of each group of
-//! [`RESYNC_BINS`] bins g…, its phasors rotated from the group's exact values by an exact
-//! rotation of j bins and then stepped eight bins at a time: 4 steps per exact start against
-//! the scalar loop's 31, so no more rounding. The leakage test's band sums (its first flat
+//! [`LANE_RESYNC_BINS`] bins g…, its phasors rotated from the group's exact values by an
+//! exact rotation of j bins and then stepped eight bins at a time: 15 steps per exact start
+//! against the scalar loop's 31 ([`RESYNC_BINS`]), so no more rounding. The leakage test's band sums (its first flat
 //! gains above all: 33 band sums each) were 4 % of a 64-channel STFT run and a seventh of a
 //! short one. (Written with intrinsics: the same loop on `[f64; 8]` arrays stayed scalar.)
 
+#[cfg(doc)]
+use super::RESYNC_BINS;
 #[cfg(target_arch = "x86_64")]
-use super::{degenerate_bin_sqr, DecayingHann, DEGENERATE_DEN_SQR, RESYNC_BINS};
+use super::{degenerate_bin_sqr, DecayingHann, DEGENERATE_DEN_SQR};
 
 /// Bins side by side.
 #[cfg(target_arch = "x86_64")]
 const LANES: usize = 8;
+
+/// Bins between exact evaluations of the phasors: 16 bins of each lane (15 steps).
+#[cfg(target_arch = "x86_64")]
+const LANE_RESYNC_BINS: usize = 16 * LANES;
 
 #[cfg(target_arch = "x86_64")]
 /// (sin, cos) of j · `angle` for j = 0 … L − 1, by repeated rotation (two transcendental calls
@@ -81,8 +87,8 @@ pub(super) unsafe fn image_gain_avx512(
     let (zero, degenerate_below) = (_mm512_setzero_pd(), splat(DEGENERATE_DEN_SQR));
     let mut total = zero;
     let mut degenerate_total = 0.0;
-    for (g, group) in weights.chunks(RESYNC_BINS).enumerate() {
-        let bin0 = first_bin + g * RESYNC_BINS;
+    for (g, group) in weights.chunks(LANE_RESYNC_BINS).enumerate() {
+        let bin0 = first_bin + g * LANE_RESYNC_BINS;
         let phi = bin0 as f64 * bin_rad + shift;
         let (s0, c0) = (0.5 * phi).sin_cos();
         let (sn0, cn0) = (0.5 * phi * k.nf).sin_cos();
