@@ -12,7 +12,7 @@ use std::ops::Range;
 use std::sync::Arc;
 
 use super::frames::{deinterleave_with, Codec, FrameLayout};
-use super::mapped::MappedBytes;
+use super::mapped::{MappedBytes, MappedRange};
 use super::Block;
 use crate::frontend::simd::Isa;
 
@@ -43,7 +43,8 @@ enum EncodedBytes {
     /// A buffer and how many of its first bytes are this block's (the rest is room, kept
     /// initialized so that a reader can fill it without zeroing it first).
     Copied(Vec<u8>, usize),
-    Mapped(Arc<MappedBytes>, Range<usize>),
+    /// A block's range of a mapped file, unmapped when the block lets go of it.
+    Mapped(MappedRange),
 }
 
 impl EncodedFrames {
@@ -73,13 +74,13 @@ impl EncodedFrames {
 
     /// The frames are `range` of the mapped file `map` (whole frames).
     pub(crate) fn set_mapped(&mut self, map: Arc<MappedBytes>, range: Range<usize>) {
-        self.bytes = EncodedBytes::Mapped(map, range);
+        self.bytes = EncodedBytes::Mapped(MappedRange::new(map, range));
     }
 
     fn bytes(&self) -> &[u8] {
         match &self.bytes {
             EncodedBytes::Copied(v, len) => &v[..*len],
-            EncodedBytes::Mapped(map, range) => &map.bytes()[range.clone()],
+            EncodedBytes::Mapped(range) => range.bytes(),
         }
     }
 

@@ -254,7 +254,7 @@ impl FrameBytes<'_> {
     fn bytes(&self) -> &[u8] {
         match self {
             FrameBytes::Buffered(b) => b.whole_frames(),
-            FrameBytes::Mapped(m, range) => &m.bytes()[range.clone()],
+            FrameBytes::Mapped(m, range) => m.slice(range.clone()),
         }
     }
 }
@@ -334,7 +334,7 @@ impl<R: Read> FrameReader<R> {
     pub(crate) fn mapped_frames(&self) -> Option<u64> {
         let (mapped, _) = self.mapped.as_ref()?;
         let frame_bytes = (self.channels * self.codec.bytes()).max(1) as u64;
-        let bytes = mapped.bytes().len() as u64;
+        let bytes = mapped.len() as u64;
         Some(self.announced_bytes.map_or(bytes, |a| a.min(bytes)) / frame_bytes)
     }
 
@@ -505,7 +505,7 @@ impl<R: Read> FrameReader<R> {
         let Some((mapped, used)) = &mut self.mapped else {
             return Ok(false);
         };
-        let all = mapped.bytes().len();
+        let all = mapped.len();
         let end = self.announced_bytes.map_or(all, |n| all.min(n as usize));
         let rest = end - *used;
         let whole = (rest / fb).min(frames);
