@@ -222,9 +222,10 @@ pub fn run_with(
         }
         drop(row_tx);
         let reader = scope.spawn(move || -> (Option<SourceError>, f64) {
-            // Its blocks come from its heap (none where the source maps its input): huge pages
-            // asked for, none collapsed ahead.
+            // Its blocks come from its heap, on huge pages; the heap's first 2 MB is collapsed
+            // once a block turns out to be a buffer of its own (not a mapped file's pages).
             super::thread_heap::advise_huge_pages(0);
+            let mut holds_buffers = false;
             let mut failure = None;
             let mut read_s = 0.0;
             let mut blocks: BlockPool<Block> = BlockPool::new();
@@ -257,6 +258,11 @@ pub fn run_with(
                     (got, ToWorker::Block(block))
                 };
                 read_s += t0.elapsed().as_secs_f64();
+                let mapped = matches!(&message, ToWorker::Encoded(f) if !f.is_copy());
+                if !holds_buffers && matches!(got, Ok(true)) && !mapped {
+                    holds_buffers = true;
+                    super::thread_heap::advise_huge_pages(usize::MAX);
+                }
                 match got {
                     Ok(true) => {
                         if !worker_txs.iter().all(|tx| tx.send(message.clone()).is_ok()) {

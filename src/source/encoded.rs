@@ -84,6 +84,11 @@ impl EncodedFrames {
         }
     }
 
+    /// Whether the frames are a copy in this block's own buffer (not a mapped file's pages).
+    pub(crate) fn is_copy(&self) -> bool {
+        matches!(self.bytes, EncodedBytes::Copied(..))
+    }
+
     /// Channels per frame.
     pub fn channels(&self) -> usize {
         self.channels
