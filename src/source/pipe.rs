@@ -29,3 +29,29 @@ pub(crate) fn widen(file: &File) {
     #[cfg(not(target_os = "linux"))]
     let _ = file;
 }
+
+#[cfg(all(test, target_os = "linux"))]
+mod tests {
+    use super::*;
+    use std::os::fd::{AsRawFd, FromRawFd};
+
+    /// A pipe grows to 1 MiB (or the system's limit, if lower).
+    #[test]
+    fn a_pipe_is_widened() {
+        let mut fds = [0; 2];
+        // SAFETY: `pipe` writes two new descriptors into `fds`, owned by the files below.
+        assert_eq!(unsafe { libc::pipe(fds.as_mut_ptr()) }, 0);
+        // SAFETY: both descriptors are fresh and owned by nothing else.
+        let (read_end, _write_end) =
+            unsafe { (File::from_raw_fd(fds[0]), File::from_raw_fd(fds[1])) };
+        // SAFETY: F_GETPIPE_SZ only reads the pipe's size.
+        let size = |f: &File| unsafe { libc::fcntl(f.as_raw_fd(), libc::F_GETPIPE_SZ) };
+        let before = size(&read_end);
+        widen(&read_end);
+        let limit: libc::c_int = std::fs::read_to_string("/proc/sys/fs/pipe-max-size")
+            .ok()
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(PIPE_BYTES);
+        assert_eq!(size(&read_end), PIPE_BYTES.min(limit).max(before));
+    }
+}
