@@ -75,30 +75,45 @@ fn band_mode_gain_direct(
 }
 
 /// The spectrum a band's bins lie on: bins `bin_rad` apart (rad/sample), of a Hann window of
-/// `window_len` samples.
+/// `window_len` samples; with the sines and cosines every band sum on it starts from, found once
+/// (three per sum were most of a narrow band's cost).
 #[derive(Clone, Copy, Debug)]
 pub(super) struct HannGrid {
-    pub(super) bin_rad: f64,
-    pub(super) window_len: usize,
+    bin_rad: f64,
+    window_len: usize,
+    /// (sin, cos) of half a bin, of n times that, and of half the Hann kernel's step 2π/n.
+    half_bin: (f64, f64),
+    half_bin_n: (f64, f64),
+    half_step: (f64, f64),
+}
+
+impl HannGrid {
+    /// Bins `bin_rad` apart (rad/sample) of a Hann window of `window_len` samples.
+    pub(super) fn new(bin_rad: f64, window_len: usize) -> Self {
+        let nf = window_len as f64;
+        HannGrid {
+            bin_rad,
+            window_len,
+            half_bin: (0.5 * bin_rad).sin_cos(),
+            half_bin_n: (0.5 * bin_rad * nf).sin_cos(),
+            half_step: (0.5 * (2.0 * std::f64::consts::PI / nf)).sin_cos(),
+        }
+    }
 }
 
 /// Σ over the band's bins of w (|H(θ − ω)|² + |H(θ + ω)|²), θ = bin · `grid.bin_rad`, bins from
 /// `first_bin` on, for a decay of `a` per sample (see the module docs).
 pub(super) fn band_mode_gain(
     isa: Isa,
-    grid: HannGrid,
+    grid: &HannGrid,
     first_bin: usize,
     weights: &[f64],
     a: f64,
     omega: f64,
 ) -> f64 {
-    let HannGrid {
-        bin_rad,
-        window_len: n,
-    } = grid;
     [-omega, omega]
         .iter()
-        .map(|&shift| image_gain(isa, first_bin, weights, bin_rad, n, a, shift))
+        .map(|&shift| image_gain(isa, grid, first_bin, weights, a, shift))
         .sum()
 }
 
@@ -117,10 +132,10 @@ struct DecayingHann {
 }
 
 impl DecayingHann {
-    fn new(n: usize, a: f64) -> Self {
-        let nf = n as f64;
+    fn new(grid: &HannGrid, a: f64) -> Self {
+        let nf = grid.window_len as f64;
         let step = 2.0 * std::f64::consts::PI / nf;
-        let (half_step_sin, half_step_cos) = (0.5 * step).sin_cos();
+        let (half_step_sin, half_step_cos) = grid.half_step;
         DecayingHann {
             nf,
             r: (-a).exp(),
@@ -150,39 +165,35 @@ impl DecayingHann {
 /// bin or on its neighbour's Hann zero) takes the limit instead ([`degenerate_bin_sqr`]).
 fn image_gain(
     isa: Isa,
+    grid: &HannGrid,
     first_bin: usize,
     weights: &[f64],
-    bin_rad: f64,
-    n: usize,
     a: f64,
     shift: f64,
 ) -> f64 {
     match isa {
         #[cfg(target_arch = "x86_64")]
         // SAFETY: `isa` was detected on this CPU (AVX-512F with AVX2 and FMA).
-        Isa::Avx512 => unsafe {
-            lanes::image_gain_avx512(first_bin, weights, bin_rad, n, a, shift)
-        },
-        _ => image_gain_scalar(first_bin, weights, bin_rad, n, a, shift),
+        Isa::Avx512 => unsafe { lanes::image_gain_avx512(grid, first_bin, weights, a, shift) },
+        _ => image_gain_scalar(grid, first_bin, weights, a, shift),
     }
 }
 
 /// [`image_gain`] one bin at a time.
 fn image_gain_scalar(
+    grid: &HannGrid,
     first_bin: usize,
     weights: &[f64],
-    bin_rad: f64,
-    n: usize,
     a: f64,
     shift: f64,
 ) -> f64 {
-    let k = DecayingHann::new(n, a);
+    let bin_rad = grid.bin_rad;
+    let k = DecayingHann::new(grid, a);
     let (nf, r_n) = (k.nf, k.r_n);
     let (half_step_sin, half_step_cos) = (k.half_step_sin, k.half_step_cos);
     let constant = k.constant();
     // Per bin, φ/2 and nφ/2 advance by these angles.
-    let (bin_sin, bin_cos) = (0.5 * bin_rad).sin_cos();
-    let (bin_n_sin, bin_n_cos) = (0.5 * bin_rad * nf).sin_cos();
+    let ((bin_sin, bin_cos), (bin_n_sin, bin_n_cos)) = (grid.half_bin, grid.half_bin_n);
     let den = |half_sin: f64| k.sqr(half_sin);
     let mut total = 0.0;
     let (mut sin_half, mut cos_half) = (0.0, 1.0);
@@ -236,23 +247,19 @@ fn image_gain_scalar(
 /// within s of the tone or of π, that image's exact sum is taken instead.
 pub(super) fn band_mode_gain_bound(
     isa: Isa,
-    grid: HannGrid,
+    grid: &HannGrid,
     first_bin: usize,
     weights: &[f64],
     cumulative: &[f64],
     a: f64,
     omega: f64,
 ) -> f64 {
-    let HannGrid {
-        bin_rad,
-        window_len: n,
-    } = grid;
     debug_assert_eq!(cumulative.len(), weights.len() + 1);
     [-omega, omega]
         .iter()
         .map(|&shift| {
-            image_gain_bound(first_bin, weights, cumulative, bin_rad, n, a, shift)
-                .unwrap_or_else(|| image_gain(isa, first_bin, weights, bin_rad, n, a, shift))
+            image_gain_bound(grid, first_bin, weights, cumulative, a, shift)
+                .unwrap_or_else(|| image_gain(isa, grid, first_bin, weights, a, shift))
         })
         .sum()
 }
@@ -262,20 +269,20 @@ const BOUND_ROUNDING: f64 = 1e-6;
 
 /// The bound of one image, or `None` where the monotone fall-off does not cover its bins.
 fn image_gain_bound(
+    grid: &HannGrid,
     first_bin: usize,
     weights: &[f64],
     cumulative: &[f64],
-    bin_rad: f64,
-    n: usize,
     a: f64,
     shift: f64,
 ) -> Option<f64> {
+    let bin_rad = grid.bin_rad;
     use std::f64::consts::{PI, TAU};
     let len = weights.len();
     if len == 0 {
         return Some(0.0);
     }
-    let k = DecayingHann::new(n, a);
+    let k = DecayingHann::new(grid, a);
     let step = k.step;
     // The bins' angles, reduced so that the first lies in (−π, π].
     let first = (first_bin as f64 * bin_rad + shift).rem_euclid(TAU);
@@ -362,11 +369,8 @@ mod tests {
                     for a in [0.0, 1e-5, 3e-3] {
                         let want = band_mode_gain_direct(first_bin, &weights, bin_rad, n, a, omega);
                         for isa in Isa::available() {
-                            let grid = HannGrid {
-                                bin_rad,
-                                window_len: n,
-                            };
-                            let got = band_mode_gain(isa, grid, first_bin, &weights, a, omega);
+                            let grid = HannGrid::new(bin_rad, n);
+                            let got = band_mode_gain(isa, &grid, first_bin, &weights, a, omega);
                             assert!(
                                 (got - want).abs() <= 1e-9 * want.abs() + 1e-12 * (n * n) as f64,
                                 "{isa:?} n {n} pad {zero_pad} bin {first_bin} ω {omega_bins} a {a}: {got} vs {want}"
@@ -430,17 +434,11 @@ mod tests {
                         }
                         let omega = bin * bin_rad;
                         for a in [0.0, 1e-5, 3e-3] {
-                            let (isa, grid) = (
-                                Isa::detect(),
-                                HannGrid {
-                                    bin_rad,
-                                    window_len: n,
-                                },
-                            );
-                            let exact = band_mode_gain(isa, grid, first_bin, &weights, a, omega);
+                            let (isa, grid) = (Isa::detect(), HannGrid::new(bin_rad, n));
+                            let exact = band_mode_gain(isa, &grid, first_bin, &weights, a, omega);
                             let bound = band_mode_gain_bound(
                                 isa,
-                                grid,
+                                &grid,
                                 first_bin,
                                 &weights,
                                 &cumulative,

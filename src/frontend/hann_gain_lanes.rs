@@ -10,7 +10,7 @@
 #[cfg(doc)]
 use super::RESYNC_BINS;
 #[cfg(target_arch = "x86_64")]
-use super::{degenerate_bin_sqr, DecayingHann, DEGENERATE_DEN_SQR};
+use super::{degenerate_bin_sqr, DecayingHann, HannGrid, DEGENERATE_DEN_SQR};
 
 /// Bins side by side.
 #[cfg(target_arch = "x86_64")]
@@ -21,10 +21,9 @@ const LANES: usize = 8;
 const LANE_RESYNC_BINS: usize = 16 * LANES;
 
 #[cfg(target_arch = "x86_64")]
-/// (sin, cos) of j · `angle` for j = 0 … L − 1, by repeated rotation (two transcendental calls
-/// per band sum, as the scalar loop takes: the calls are many and many bands narrow).
-fn rotation_powers<const L: usize>(angle: f64) -> [(f64, f64); L] {
-    let one = angle.sin_cos();
+/// (sin, cos) of j times the angle of `one` (its sin, cos) for j = 0 … L − 1, by repeated
+/// rotation.
+fn rotation_powers<const L: usize>(one: (f64, f64)) -> [(f64, f64); L] {
     let mut out = [(0.0, 1.0); L];
     for j in 1..L {
         out[j] = rotate(out[j - 1], one);
@@ -46,22 +45,22 @@ fn rotate((s, c): (f64, f64), (ds, dc): (f64, f64)) -> (f64, f64) {
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx2,fma")]
 pub(super) unsafe fn image_gain_avx512(
+    grid: &HannGrid,
     first_bin: usize,
     weights: &[f64],
-    bin_rad: f64,
-    n: usize,
     a: f64,
     shift: f64,
 ) -> f64 {
     use std::arch::x86_64::*;
-    let k = DecayingHann::new(n, a);
+    let bin_rad = grid.bin_rad;
+    let k = DecayingHann::new(grid, a);
     let splat = |x: f64| _mm512_set1_pd(x);
     let (c1, c2) = (splat(k.one_minus_r_sqr), splat(4.0 * k.r));
     let (n1, n2) = (splat(k.one_minus_rn_sqr), splat(4.0 * k.r_n));
     let constant = splat(k.constant());
     let (half_step_sin, half_step_cos) = (splat(k.half_step_sin), splat(k.half_step_cos));
-    let lane = rotation_powers::<LANES>(0.5 * bin_rad);
-    let lane_n = rotation_powers::<LANES>(0.5 * bin_rad * k.nf);
+    let lane = rotation_powers::<LANES>(grid.half_bin);
+    let lane_n = rotation_powers::<LANES>(grid.half_bin_n);
     let columns = |r: &[(f64, f64); LANES]| {
         let (mut s, mut c) = ([0.0; LANES], [0.0; LANES]);
         for (j, &(sj, cj)) in r.iter().enumerate() {

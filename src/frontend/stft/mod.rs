@@ -98,6 +98,8 @@ pub struct StftFrontEnd {
     zero_pad: usize,
     /// Instruction set of the per-frame loops (window, power spectrum).
     isa: Isa,
+    /// The spectrum the bands' bins lie on, for the leakage test's gains.
+    hann_grid: super::hann_gain::HannGrid,
 }
 
 /// One frame's band figures, kept until the frame may be emitted.
@@ -185,6 +187,10 @@ impl StftFrontEnd {
             sample_rate_hz,
             zero_pad: settings.zero_pad,
             isa: Isa::detect(),
+            hann_grid: super::hann_gain::HannGrid::new(
+                2.0 * std::f64::consts::PI * bin_hz / sample_rate_hz,
+                win_len,
+            ),
         })
     }
 
@@ -252,14 +258,6 @@ impl StftFrontEnd {
             frequency_hz: &self.frequency_hz,
             active: None,
         });
-    }
-
-    /// The spectrum the bands' bins lie on ([`super::hann_gain`]).
-    fn hann_grid(&self) -> super::hann_gain::HannGrid {
-        super::hann_gain::HannGrid {
-            bin_rad: 2.0 * std::f64::consts::PI * self.bin_hz / self.sample_rate_hz,
-            window_len: self.window.len(),
-        }
     }
 
     /// Every band's energy and peak frequency from one frame's power spectrum.
@@ -445,7 +443,7 @@ impl FrontEnd for StftFrontEnd {
         let omega = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
         super::hann_gain::band_mode_gain(
             self.isa,
-            self.hann_grid(),
+            &self.hann_grid,
             bb.first_bin,
             &bb.weights,
             a,
@@ -459,7 +457,7 @@ impl FrontEnd for StftFrontEnd {
         let omega = 2.0 * std::f64::consts::PI * f_hz / self.sample_rate_hz;
         super::hann_gain::band_mode_gain_bound(
             self.isa,
-            self.hann_grid(),
+            &self.hann_grid,
             bb.first_bin,
             &bb.weights,
             &bb.cumulative,
