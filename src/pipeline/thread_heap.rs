@@ -2,8 +2,8 @@
 //!
 //! Each analysis thread allocates its channels' state, histories and decoded blocks from its
 //! own glibc arena: about 2 MB of fresh memory per thread in a 64-channel × 10 s run, all of it
-//! page faults on 4 kB pages (~500 per thread, 1.2 µs each on the reference VM: ~1 ms of the
-//! run's ~19 ms of CPU). On one 2 MB page it is one fault.
+//! page faults on 4 kB pages (~500 per thread, 1.2 µs each on the 2-core VM this was measured
+//! on: ~1 ms of the run's ~19 ms of CPU). On one 2 MB page it is one fault.
 //!
 //! glibc maps a thread arena's heap as one region of `HEAP_MAX_BYTES` aligned to its own size
 //! (the address of any chunk of it, rounded down, is the heap's start) and grows it in place.
@@ -27,16 +27,19 @@ const HUGE_PAGE_BYTES: usize = 2 << 20;
 #[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
 const PROBE_BYTES: usize = 4096;
 
-#[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
 /// Fresh heap memory a thread expects to use (its decoded blocks) from which the first 2 MB
 /// is collapsed at once: below, its few pages fault in cheaper than a collapse (128 pages ×
 /// 1.2 µs against 0.09 ms).
+#[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
 const COLLAPSE_FROM_BYTES: usize = 512 << 10;
 
 /// Asks for huge pages on the heap of the calling thread's malloc arena, expecting to use
-/// `expected_bytes` of it; call it first thing in a worker thread. Performance only: nothing
-/// changes where it does not apply.
+/// `expected_bytes` of it: call it first thing in a thread, and again with more bytes once the
+/// thread knows it will use them (the reader, when its blocks turn out to be its own buffers).
+/// Performance only: nothing changes where it does not apply.
 pub(super) fn advise_huge_pages(expected_bytes: usize) {
+    #[cfg(not(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64")))]
+    let _ = expected_bytes;
     #[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
     {
         let probe: Vec<u8> = Vec::with_capacity(PROBE_BYTES);
