@@ -240,7 +240,7 @@ pub(crate) struct FrameReader<R> {
     read: BufferedFrames,
     what: String,
     /// The input as a mapped file, and how many of its bytes were decoded: then `reader` and
-    /// `buf` are unused and blocks are decoded straight from the mapping.
+    /// `read` are unused and blocks are decoded straight from the mapping.
     mapped: Option<(Arc<MappedBytes>, usize)>,
 }
 

@@ -92,7 +92,9 @@ impl MappedBytes {
         self.map_len - self.skip
     }
 
-    /// The mapped bytes `range` (within [`MappedBytes::len`], and not released).
+    /// The mapped bytes `range` (within [`MappedBytes::len`]). Never ask for bytes a dropped
+    /// [`MappedRange`] covered: its whole pages are gone (the reader hands each range out once
+    /// and never reads it again; the blocks read theirs only while they hold them).
     pub(crate) fn slice(&self, range: std::ops::Range<usize>) -> &[u8] {
         assert!(range.start <= range.end && range.end <= self.len());
         // SAFETY: `base` maps `map_len` readable bytes for the life of `self`, less the pages
