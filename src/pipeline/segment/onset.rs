@@ -19,6 +19,8 @@ pub fn find_onset(samples: &[f64], level_db: f64) -> Option<usize> {
     samples.iter().position(|x| x.abs() >= threshold)
 }
 
+use super::sample_scan::block_maxima_into_ring;
+
 /// Settings of the streaming onset detector.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct OnsetSettings {
@@ -359,15 +361,14 @@ impl RetriggerWatch {
         self.close_block();
         // Whole blocks: those older than the ring's reach are counted, not scanned; the others
         // closed as `close_block` closes them while the window is not live (into the ring).
-        let skipped = (rest.len() / self.block).saturating_sub(self.maxima.len());
-        let blocks = rest[skipped * self.block..].chunks_exact(self.block);
-        rest = blocks.remainder();
-        self.block_index += (skipped + blocks.len()) as u64;
-        self.seen += ((skipped + blocks.len()) * self.block) as u64;
-        for this in blocks {
-            self.maxima[self.ring_head] = super::sample_scan::max_abs_finite(self.isa, this);
-            self.ring_head = wrap(self.ring_head + 1, self.maxima.len());
-        }
+        let n = rest.len() / self.block;
+        let skipped = n.saturating_sub(self.maxima.len());
+        let (whole, tail) = rest[skipped * self.block..].split_at((n - skipped) * self.block);
+        rest = tail;
+        self.block_index += n as u64;
+        self.seen += (n * self.block) as u64;
+        let (isa, head) = (self.isa, self.ring_head);
+        self.ring_head = block_maxima_into_ring(isa, whole, self.block, &mut self.maxima, head);
         // The start of the next block.
         self.block_max = super::sample_scan::max_abs_finite(self.isa, rest);
         self.block_fill = rest.len();

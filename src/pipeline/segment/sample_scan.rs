@@ -79,6 +79,90 @@ fn max_abs_in_lanes(isa: Isa, x: &[f64]) -> f64 {
     }
 }
 
+/// Samples of small blocks whose maxima are found per piece (a stack buffer of this length).
+const PIECE_SAMPLES: usize = 512;
+
+/// Writes the [`max_abs_finite`] of each whole `block`-sample block of `x` into `ring` from
+/// `head` on, wrapping at its end; returns the next head. Small blocks (the new-hit watch at
+/// low rates: 5 samples at 4096 Hz) take no call and no serial fold each: the magnitudes and
+/// their running maxima over 2, 4, … samples are whole-piece passes in lanes, and a block of
+/// b samples is the larger of two overlapping windows of the largest power of two ≤ b (a
+/// maximum, so exactly the serial one).
+pub(crate) fn block_maxima_into_ring(
+    isa: Isa,
+    x: &[f64],
+    block: usize,
+    ring: &mut [f64],
+    mut head: usize,
+) -> usize {
+    debug_assert!(block > 0 && x.len().is_multiple_of(block) && head < ring.len());
+    let mut put = |m: f64| {
+        ring[head] = m;
+        head = if head + 1 == ring.len() { 0 } else { head + 1 };
+    };
+    if block >= SHORT_SCAN || block == 1 {
+        x.chunks_exact(block)
+            .for_each(|b| put(max_abs_finite(isa, b)));
+        return head;
+    }
+    // Out of place, so that each pass is a plain lane loop: next[i] = max(cur[i], cur[i + w]).
+    #[inline(always)]
+    fn windows<'a>(cur: &'a mut [f64], next: &'a mut [f64], x: &[f64], width: usize) -> &'a [f64] {
+        for (m, &v) in cur.iter_mut().zip(x) {
+            *m = magnitude(v);
+        }
+        let (mut cur, mut next) = (cur, next);
+        let mut w = 1;
+        while 2 * w <= width {
+            let n = cur.len() - w;
+            for ((o, &a), &b) in next[..n].iter_mut().zip(&cur[..n]).zip(&cur[w..]) {
+                *o = if b > a { b } else { a };
+            }
+            std::mem::swap(&mut cur, &mut next);
+            w *= 2;
+        }
+        cur
+    }
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    unsafe fn windows_avx2<'a>(
+        cur: &'a mut [f64],
+        next: &'a mut [f64],
+        x: &[f64],
+        width: usize,
+    ) -> &'a [f64] {
+        windows(cur, next, x, width)
+    }
+    let mut width = 1;
+    while 2 * width <= block {
+        width *= 2;
+    }
+    // Two pieces of scratch per thread (zero-filled once, not per call).
+    thread_local! {
+        static SCRATCH: std::cell::RefCell<Vec<f64>> = Default::default();
+    }
+    crate::frontend::with_thread_scratch(&SCRATCH, |scratch| {
+        scratch.resize(2 * PIECE_SAMPLES, 0.0);
+        let (cur, next) = scratch.split_at_mut(PIECE_SAMPLES);
+        let piece_len = (PIECE_SAMPLES / block * block).min(x.len()).max(block);
+        for piece in x.chunks(piece_len) {
+            let (cur, next) = (&mut cur[..piece.len()], &mut next[..piece.len()]);
+            let window = match isa {
+                #[cfg(target_arch = "x86_64")]
+                // SAFETY: `Isa::detect` found AVX2 on this CPU.
+                Isa::Avx2Fma | Isa::Avx512 => unsafe { windows_avx2(cur, next, piece, width) },
+                Isa::Generic => windows(cur, next, piece, width),
+            };
+            // window[i] holds the maximum of `width` samples from i on (i ≤ len − width).
+            for start in (0..piece.len()).step_by(block) {
+                let (a, b) = (window[start], window[start + block - width]);
+                put(if b > a { b } else { a });
+            }
+        }
+    });
+    head
+}
+
 /// Index of the first non-finite sample of `x`, if any. The common all-finite block is settled
 /// by one lane-parallel pass (x·0 is 0 for a finite x and NaN otherwise).
 pub(crate) fn first_non_finite(isa: Isa, x: &[f64]) -> Option<usize> {
@@ -115,6 +199,49 @@ pub(crate) fn first_non_finite(isa: Isa, x: &[f64]) -> Option<usize> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Block maxima into a ring against one `max_abs_finite` per block: block sizes 1 to 40
+    /// (both paths, powers of two and not), stretches longer than a piece, non-finite samples,
+    /// rings shorter and longer than the stretch, every head, every instruction set.
+    #[test]
+    fn block_maxima_equal_one_scan_per_block() {
+        for isa in Isa::available() {
+            for block in (1..=40).chain([64, 100]) {
+                for blocks in [0usize, 1, 3, 97, 230] {
+                    let mut x: Vec<f64> = (0..block * blocks)
+                        .map(|i| ((i * 7919 % 1013) as f64 - 500.0) * 1e-3)
+                        .collect();
+                    for (k, s) in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY]
+                        .iter()
+                        .enumerate()
+                    {
+                        if let Some(v) = x.get_mut(k * 37 + 5) {
+                            *v = *s;
+                        }
+                    }
+                    for ring_len in [1usize, 7, 300] {
+                        for head in [0, ring_len / 2, ring_len - 1] {
+                            let mut want = vec![-1.0; ring_len];
+                            let mut h = head;
+                            for b in x.chunks_exact(block) {
+                                want[h] = max_abs_finite(isa, b);
+                                h = (h + 1) % ring_len;
+                            }
+                            let mut got = vec![-1.0; ring_len];
+                            let got_head = block_maxima_into_ring(isa, &x, block, &mut got, head);
+                            assert_eq!(got_head, h, "{isa:?} block {block} × {blocks}");
+                            assert!(
+                                got.iter()
+                                    .zip(&want)
+                                    .all(|(g, w)| g.to_bits() == w.to_bits()),
+                                "{isa:?} block {block} × {blocks}, ring {ring_len} from {head}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
 
     /// Against the one-sample-at-a-time definitions, on every instruction set of this CPU, with
     /// lengths around the lane count and non-finite samples at every position class.
