@@ -14,7 +14,7 @@ use std::cell::RefCell;
 use std::sync::Arc;
 
 /// Bytes of a transparent huge page on x86-64 and aarch64 with 4 kB pages.
-const HUGE_PAGE_BYTES: usize = 2 << 20;
+pub(crate) const HUGE_PAGE_BYTES: usize = 2 << 20;
 
 /// Smallest arena worth mapping: below it (short or few channels) the allocator serves.
 const MIN_ARENA_BYTES: usize = HUGE_PAGE_BYTES;

@@ -81,7 +81,9 @@ fn band_mode_gain_direct(
 pub(super) struct HannGrid {
     bin_rad: f64,
     window_len: usize,
-    /// (sin, cos) of half a bin, of n times that, and of half the Hann kernel's step 2π/n.
+    /// The Hann kernel's step 2π/n, rad/sample.
+    step: f64,
+    /// (sin, cos) of half a bin, of n times that, and of half the step.
     half_bin: (f64, f64),
     half_bin_n: (f64, f64),
     half_step: (f64, f64),
@@ -91,12 +93,14 @@ impl HannGrid {
     /// Bins `bin_rad` apart (rad/sample) of a Hann window of `window_len` samples.
     pub(super) fn new(bin_rad: f64, window_len: usize) -> Self {
         let nf = window_len as f64;
+        let step = 2.0 * std::f64::consts::PI / nf;
         HannGrid {
             bin_rad,
             window_len,
+            step,
             half_bin: (0.5 * bin_rad).sin_cos(),
             half_bin_n: (0.5 * bin_rad * nf).sin_cos(),
-            half_step: (0.5 * (2.0 * std::f64::consts::PI / nf)).sin_cos(),
+            half_step: (0.5 * step).sin_cos(),
         }
     }
 }
@@ -133,8 +137,7 @@ struct DecayingHann {
 
 impl DecayingHann {
     fn new(grid: &HannGrid, a: f64) -> Self {
-        let nf = grid.window_len as f64;
-        let step = 2.0 * std::f64::consts::PI / nf;
+        let (nf, step) = (grid.window_len as f64, grid.step);
         let (half_step_sin, half_step_cos) = grid.half_step;
         DecayingHann {
             nf,

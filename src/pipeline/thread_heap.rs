@@ -17,9 +17,8 @@
 #[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
 const HEAP_MAX_BYTES: usize = 64 << 20;
 
-/// Bytes of a transparent huge page on x86-64 and aarch64 with 4 kB pages.
 #[cfg(all(target_os = "linux", target_env = "gnu", target_pointer_width = "64"))]
-const HUGE_PAGE_BYTES: usize = 2 << 20;
+use crate::frontend::decay_arena::HUGE_PAGE_BYTES;
 
 /// Bytes of the allocation whose address locates the arena's heap: above glibc's per-thread
 /// cache (at most 1032 bytes, which may hold chunks of other arenas freed by this thread) and
