@@ -44,15 +44,25 @@ pub(super) enum Transform {
     /// N odd, where it applies ([`shared_prime_factor`]): the prime-factor FFT for both (no
     /// rustfft plan is made: planning them was 0.1 ms of every run's start).
     PrimeFactor(Arc<PrimeFactorFft>),
+    /// N = 2M with the prime-factor FFT applying to M: as `Even`, its complex FFT of M taken
+    /// by the prime-factor FFT (M = 819 at 8192 Hz, 3277 at 32768 Hz).
+    EvenPrimeFactor {
+        half: Arc<PrimeFactorFft>,
+        twiddles: Arc<[Complex<f64>]>,
+    },
 }
 
 impl Transform {
     /// The plans for an FFT of `nfft` points (≥ 2).
     pub(super) fn new(nfft: usize) -> Transform {
         if nfft.is_multiple_of(2) {
-            Transform::Even {
-                half: shared_complex_plan(nfft / 2),
-                twiddles: shared_half_twiddles(nfft),
+            let twiddles = shared_half_twiddles(nfft);
+            match shared_prime_factor(nfft / 2) {
+                Some(half) => Transform::EvenPrimeFactor { half, twiddles },
+                None => Transform::Even {
+                    half: shared_complex_plan(nfft / 2),
+                    twiddles,
+                },
             }
         } else if let Some(plan) = shared_prime_factor(nfft) {
             Transform::PrimeFactor(plan)
@@ -91,6 +101,12 @@ impl Transform {
                 // Lengths are fixed at construction, so the FFT cannot fail.
                 half.process_outofplace_with_scratch(half_in, spectrum, scratch);
                 half_spectrum_powers(isa, spectrum, twiddles, power);
+            }
+            Transform::EvenPrimeFactor { half, twiddles } => {
+                sized(&mut buffers.power, half.len() + 1, 0.0);
+                sized(&mut buffers.power_b, half.len() + 1, 0.0);
+                half.transform_interleaved(isa, (x, window), &mut buffers.split, &mut buffers.pair);
+                half_spectrum_powers(isa, &buffers.pair, twiddles, &mut buffers.power);
             }
             Transform::PrimeFactor(plan) => {
                 prime_factor_spectrum(plan, isa, (x, None), window, buffers);
@@ -134,7 +150,7 @@ impl Transform {
                 pair.process_with_scratch(&mut buffers.pair, &mut buffers.pair_scratch);
                 unpack_pair_powers(isa, &buffers.pair, &mut buffers.power, &mut buffers.power_b);
             }
-            Transform::Even { .. } => {
+            Transform::Even { .. } | Transform::EvenPrimeFactor { .. } => {
                 self.frame_power(isa, b, window, buffers);
                 std::mem::swap(&mut buffers.power, &mut buffers.power_b);
                 self.frame_power(isa, a, window, buffers);
@@ -232,9 +248,17 @@ pub(super) fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R
 mod tests {
     use super::*;
 
+    /// The even-length path with rustfft's plan of M, whatever the CPU would pick.
+    fn rustfft_even(nfft: usize) -> Transform {
+        Transform::Even {
+            half: shared_complex_plan(nfft / 2),
+            twiddles: shared_half_twiddles(nfft),
+        }
+    }
+
     /// The fused even-length path gives realfft's transform followed by |X|², bit for bit,
     /// for lengths 2M with M even and odd, with and without zero padding, on every
-    /// instruction set of this CPU.
+    /// instruction set of this CPU (with rustfft's plan of M, as realfft has it).
     #[test]
     fn even_lengths_give_realffts_powers_bit_for_bit() {
         for isa in Isa::available() {
@@ -254,7 +278,7 @@ mod tests {
                     .map(|i| 0.5 + 0.5 * (i as f64 * 0.01).cos())
                     .collect();
                 let mut buffers = FrameBuffers::default();
-                Transform::new(nfft).frame_power(isa, &x, &window, &mut buffers);
+                rustfft_even(nfft).frame_power(isa, &x, &window, &mut buffers);
                 // The oracle: realfft's r2c, then the power of each bin.
                 let real = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
                 let mut input = real.make_input_vec();
@@ -270,6 +294,53 @@ mod tests {
                         a.to_bits(),
                         b.to_bits(),
                         "{isa:?} N {nfft} bin {k}: {a} vs {b}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Even lengths whose half the prime-factor FFT takes (M = 15, 201 = 3 · 67, 819 at 8192
+    /// Hz, 3277 = 29 · 113 at 32768 Hz), forced on whatever this CPU has: realfft's powers to
+    /// 1e-12 of the largest, frames of N samples, odd-length ones and zero-padded ones.
+    #[test]
+    fn even_lengths_through_the_prime_factor_fft_give_realffts_powers() {
+        for (w, nfft) in [
+            (30usize, 30usize),
+            (29, 30),
+            (402, 402),
+            (300, 402),
+            (1638, 1638),
+            (1637, 1638),
+            (6554, 6554),
+        ] {
+            let x: Vec<f64> = (0..w)
+                .map(|i| ((i * 7919 % 1013) as f64 - 500.0) * 1e-3 + (i as f64 * 0.37).sin())
+                .collect();
+            let window: Vec<f64> = (0..w)
+                .map(|i| 0.5 - 0.5 * (i as f64 * 0.02).cos())
+                .collect();
+            let real = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+            let mut input = real.make_input_vec();
+            for ((d, &v), &g) in input.iter_mut().zip(&x).zip(&window) {
+                *d = v * g;
+            }
+            let mut out = real.make_output_vec();
+            real.process(&mut input, &mut out).unwrap();
+            let expected: Vec<f64> = out.iter().map(|c| c.norm_sqr()).collect();
+            let scale = expected.iter().fold(0.0f64, |m, &p| m.max(p));
+            let forced = Transform::EvenPrimeFactor {
+                half: Arc::new(PrimeFactorFft::new(nfft / 2).expect("planned")),
+                twiddles: shared_half_twiddles(nfft),
+            };
+            for isa in Isa::available() {
+                let mut buffers = FrameBuffers::default();
+                forced.frame_power(isa, &x, &window, &mut buffers);
+                assert_eq!(buffers.power.len(), expected.len(), "{isa:?} N {nfft}");
+                for (k, (g, e)) in buffers.power.iter().zip(&expected).enumerate() {
+                    assert!(
+                        (g - e).abs() <= 1e-12 * scale,
+                        "{isa:?} N {nfft} w {w} bin {k}: {g} vs {e}"
                     );
                 }
             }
@@ -310,14 +381,16 @@ mod tests {
     /// still fitted, so its spectrum buffer, resized by the odd one, was not checked.
     #[test]
     fn shared_buffers_serve_every_length_in_turn() {
-        // 819, 315, 63 and 45 take the prime-factor FFT on AVX-512 CPUs, whose padding positions
-        // are left as they are: 63 (9 · 7) and 45 (9 · 5) both pad to 9 · 8 positions, and 45
-        // has padding where 63 leaves data.
+        // 819, 315, 63, 45, 3277 (29 · 113, with wide stages and their scratch) and the half of
+        // 1638 take the prime-factor FFT on AVX-512 CPUs, whose padding positions are left as
+        // they are: 63 (9 · 7) and 45 (9 · 5) both pad to 9 · 8 positions, and 45 has padding
+        // where 63 leaves data.
         let lengths = [
-            200usize, 201, 819, 200, 63, 45, 199, 9, 315, 819, 10, 402, 201, 200,
+            200usize, 201, 819, 200, 63, 45, 199, 9, 315, 819, 10, 402, 201, 1638, 200, 1638, 3277,
+            819,
         ];
-        let x: Vec<f64> = (0..820).map(|i| (i as f64 * 0.13).cos() + 0.05).collect();
-        let window = vec![1.0; 820];
+        let x: Vec<f64> = (0..3278).map(|i| (i as f64 * 0.13).cos() + 0.05).collect();
+        let window = vec![1.0; 3278];
         let mut shared = FrameBuffers::default();
         for &n in &lengths {
             let transform = Transform::new(n);

@@ -25,13 +25,19 @@ use rustfft::num_complex::Complex;
 
 mod lanes;
 mod stages;
+mod wide;
 
 use crate::frontend::simd::Isa;
 use lanes::Lanes;
+use wide::WideScratch;
 
-/// The factors (prime powers) a stage can take; an odd length is planned only when all its
-/// factors are among them.
+/// The factors (prime powers) a stage holds in registers ([`stages`]).
 const FACTORS: [usize; 6] = [3, 5, 7, 9, 11, 13];
+
+/// The largest factor a [`wide`] stage takes: a prime power of a prime above 13 (rustfft's plans
+/// of such factors are its slow ones). The direct sum's cost grows as r per point: at 257 it is
+/// still less than half of rustfft's time for 3 · 17 · 257; beyond, lengths stay with rustfft.
+const WIDE_MAX: usize = 257;
 
 /// The innermost axis is padded to a multiple of this many positions (eight `f64` fill one
 /// AVX-512 register).
@@ -48,7 +54,15 @@ struct Stage {
     /// The product of the factors before this axis, and of those after it (its stride).
     outer: usize,
     inner: usize,
+    /// A wide factor's tables as [`wide`] reads them (empty for the others).
+    blocked: Vec<f64>,
 }
+
+/// The shortest length given a wide stage in the STFT ([`super::tables::shared_prime_factor`]):
+/// below it rustfft's plans were as fast or faster (one core of the AVX-512 machine of the
+/// README, a frame pair each: 51, 95, 205, 255 and 345 points 1.1–3× slower through the wide
+/// stages; 287, 301, 323 and every length tried from 357 to 16385 faster, by 1.1–2×).
+pub(super) const WIDE_MIN_POINTS: usize = 350;
 
 /// A planned prime-factor FFT of one odd length (forward, unnormalised, as rustfft's).
 #[derive(Debug)]
@@ -76,22 +90,26 @@ pub(super) struct FramePair<'a> {
     pub window: &'a [f64],
 }
 
-/// The split real and imaginary parts the stages run on (one pair per thread).
+/// The split real and imaginary parts the stages run on, and the wide stages' scratch (one set
+/// per thread).
 #[derive(Default)]
 pub(super) struct SplitBuffer {
     re: Vec<f64>,
     im: Vec<f64>,
+    wide: WideScratch,
 }
 
 impl PrimeFactorFft {
-    /// The plan for `n` points, or `None` when `n` is even, has a prime-power factor outside
-    /// 3 … 13, or is a single prime power (no second axis to take the lanes from).
+    /// The plan for `n` points, or `None` when `n` is even, is a single prime power (no second
+    /// axis to take the lanes from), or has a prime-power factor that is neither one of
+    /// [`FACTORS`] nor a power of a prime above 13 up to [`WIDE_MAX`].
     pub(super) fn new(n: usize) -> Option<PrimeFactorFft> {
         if n < 15 || n.is_multiple_of(2) || n > u32::MAX as usize / 2 {
             return None;
         }
         let mut factors = prime_powers(n);
-        if factors.len() < 2 || !factors.iter().all(|f| FACTORS.contains(f)) {
+        let takes = |f: usize| FACTORS.contains(&f) || (smallest_prime(f) > 13 && f <= WIDE_MAX);
+        if factors.len() < 2 || !factors.iter().all(|&f| takes(f)) {
             return None;
         }
         // The innermost axis is padded to a multiple of PAD positions, so that every line of
@@ -158,6 +176,11 @@ impl PrimeFactorFft {
         self.n
     }
 
+    /// Whether a stage is a [`wide`] one (a factor above 13).
+    pub(super) fn has_wide_stage(&self) -> bool {
+        self.stages.iter().any(|s| !FACTORS.contains(&s.r))
+    }
+
     /// `spectrum` (resized to N) = the DFT of z = a + i b, both windowed ([`FramePair`]).
     pub(super) fn transform(
         &self,
@@ -166,39 +189,58 @@ impl PrimeFactorFft {
         work: &mut SplitBuffer,
         spectrum: &mut Vec<Complex<f64>>,
     ) {
+        self.fit(work, spectrum);
+        permute_windowed(&self.position_of, input, &mut work.re, &mut work.im);
+        self.run_stages(isa, work, spectrum);
+    }
+
+    /// `spectrum` (resized to N) = the DFT of z_m = x_{2m} w_{2m} + i x_{2m+1} w_{2m+1}, zero
+    /// past the shorter of `x` and `window`: the complex FFT of half the length that an even
+    /// real transform of 2N points is made of (see [`super::transform`]).
+    pub(super) fn transform_interleaved(
+        &self,
+        isa: Isa,
+        (x, window): (&[f64], &[f64]),
+        work: &mut SplitBuffer,
+        spectrum: &mut Vec<Complex<f64>>,
+    ) {
+        self.fit(work, spectrum);
+        permute_interleaved(&self.position_of, (x, window), &mut work.re, &mut work.im);
+        self.run_stages(isa, work, spectrum);
+    }
+
+    /// Sizes the working arrays and the spectrum for this length.
+    fn fit(&self, work: &mut SplitBuffer, spectrum: &mut Vec<Complex<f64>>) {
         work.re.resize(self.positions, 0.0);
         work.im.resize(self.positions, 0.0);
         spectrum.resize(self.n, Complex::new(0.0, 0.0));
+    }
+
+    /// The stages on the permuted input in `work`, on the CPU's best lanes.
+    fn run_stages(&self, isa: Isa, work: &mut SplitBuffer, spectrum: &mut [Complex<f64>]) {
         match isa {
             #[cfg(target_arch = "x86_64")]
             // SAFETY: `Isa::detect` found AVX-512F on this CPU.
-            Isa::Avx512 => unsafe { self.transform_avx512(input, work, spectrum) },
+            Isa::Avx512 => unsafe { self.transform_avx512(work, spectrum) },
             // SAFETY: `f64` lanes need no instruction set beyond the baseline.
-            _ => unsafe { self.stages::<f64>(input, work, spectrum) },
+            _ => unsafe { self.stages::<f64>(work, spectrum) },
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma")]
-    unsafe fn transform_avx512(
-        &self,
-        input: &FramePair<'_>,
-        work: &mut SplitBuffer,
-        spectrum: &mut [Complex<f64>],
-    ) {
-        self.stages::<lanes::F64x8>(input, work, spectrum)
+    unsafe fn transform_avx512(&self, work: &mut SplitBuffer, spectrum: &mut [Complex<f64>]) {
+        self.stages::<lanes::F64x8>(work, spectrum)
     }
 
     /// The stages in `V`'s lanes (inlined into each instruction set's copy).
     #[inline(always)]
-    unsafe fn stages<V: Lanes>(
-        &self,
-        input: &FramePair<'_>,
-        work: &mut SplitBuffer,
-        spectrum: &mut [Complex<f64>],
-    ) {
-        let SplitBuffer { re, im } = work;
-        permute_windowed(&self.position_of, input, re, im);
+    unsafe fn stages<V: Lanes>(&self, work: &mut SplitBuffer, spectrum: &mut [Complex<f64>]) {
+        let SplitBuffer {
+            re,
+            im,
+            wide: scratch,
+        } = work;
         let (last, others) = self.stages.split_last().expect("two stages or more");
         macro_rules! by_factor {
             ($stage:expr, $f:ident ( $($arg:expr),* )) => {
@@ -209,7 +251,8 @@ impl PrimeFactorFft {
                     9 => stages::$f::<V, 9, 4>($stage, $($arg),*),
                     11 => stages::$f::<V, 11, 5>($stage, $($arg),*),
                     13 => stages::$f::<V, 13, 6>($stage, $($arg),*),
-                    _ => unreachable!("factors are checked when planning"),
+                    // Planning admits only these and the wide ones.
+                    _ => wide::$f::<V>($stage, $($arg),*, scratch),
                 }
             };
         }
@@ -247,6 +290,40 @@ fn permute_windowed(position_of: &[u32], input: &FramePair<'_>, re: &mut [f64], 
     }
 }
 
+/// The pairs of an even frame as complex values, value m (x_{2m} w_{2m}, x_{2m+1} w_{2m+1}) to
+/// `re[position_of[m]]`, `im[position_of[m]]`, zero past the frame's end; as
+/// [`permute_windowed`].
+#[inline(never)]
+fn permute_interleaved(
+    position_of: &[u32],
+    (x, window): (&[f64], &[f64]),
+    re: &mut [f64],
+    im: &mut [f64],
+) {
+    let len = x.len().min(window.len()).min(2 * position_of.len());
+    let (x, window) = (&x[..len], &window[..len]);
+    let (head, tail) = position_of.split_at(len / 2);
+    for ((&p, x), w) in head
+        .iter()
+        .zip(x.chunks_exact(2))
+        .zip(window.chunks_exact(2))
+    {
+        (re[p as usize], im[p as usize]) = (x[0] * w[0], x[1] * w[1]);
+    }
+    for (i, &p) in tail.iter().enumerate() {
+        let j = 2 * (len / 2 + i);
+        re[p as usize] = if j < len { x[j] * window[j] } else { 0.0 };
+        im[p as usize] = 0.0;
+    }
+}
+
+/// The smallest prime factor of `n` ≥ 2.
+fn smallest_prime(n: usize) -> usize {
+    (2..)
+        .find(|p| n.is_multiple_of(*p))
+        .expect("n ≥ 2 has a prime factor")
+}
+
 /// The prime powers whose product is `n`, smallest prime first.
 fn prime_powers(mut n: usize) -> Vec<usize> {
     let mut out = Vec::new();
@@ -278,12 +355,18 @@ impl Stage {
                 .flat_map(|k| (1..=h).map(move |j| f(angle(j, k))))
                 .collect::<Vec<f64>>()
         };
+        let (cos, sin) = (table(f64::cos), table(f64::sin));
+        let blocked = match FACTORS.contains(&r) {
+            true => Vec::new(),
+            false => wide::blocked_table(h, &cos, &sin),
+        };
         Stage {
             r,
-            cos: table(f64::cos),
-            sin: table(f64::sin),
+            cos,
+            sin,
             outer,
             inner,
+            blocked,
         }
     }
 }
@@ -292,16 +375,22 @@ impl Stage {
 mod tests {
     use super::*;
 
-    /// The oracle: the DFT by its definition, angles reduced exactly (jk mod N).
+    /// The oracle: the DFT by its definition, angles reduced exactly (jk mod N; the N roots of
+    /// unity tabulated once).
     fn naive_dft(z: &[Complex<f64>]) -> Vec<Complex<f64>> {
         let n = z.len();
+        let roots: Vec<Complex<f64>> = (0..n)
+            .map(|m| {
+                let angle = -2.0 * std::f64::consts::PI * m as f64 / n as f64;
+                Complex::new(angle.cos(), angle.sin())
+            })
+            .collect();
         (0..n)
             .map(|k| {
                 z.iter()
                     .enumerate()
                     .fold(Complex::new(0.0, 0.0), |acc, (j, &v)| {
-                        let angle = -2.0 * std::f64::consts::PI * ((j * k) % n) as f64 / n as f64;
-                        acc + v * Complex::new(angle.cos(), angle.sin())
+                        acc + v * roots[(j * k) % n]
                     })
             })
             .collect()
@@ -328,6 +417,18 @@ mod tests {
             1001,
             1155,
             5 * 7 * 11,
+            // Wide factors (primes above 13): first, last and middle axes, with small ones
+            // and each other, tails of every K_BLOCK remainder (H = 8 … 14, 56,
+            // 128), the 200 ms windows at 16384 Hz (29 · 113) and 65536 Hz (3 · 17 · 257).
+            3 * 17,
+            17 * 19,
+            5 * 23,
+            3 * 5 * 29,
+            9 * 31,
+            5 * 17 * 19,
+            17 * 29,
+            29 * 113,
+            3 * 17 * 257,
         ];
         for isa in Isa::available() {
             for n in lengths {
@@ -368,9 +469,11 @@ mod tests {
         }
     }
 
-    /// Lengths the lane kernels cannot take are left to rustfft.
+    /// Lengths the lane kernels cannot take are left to rustfft: even ones, single prime
+    /// powers, powers of small primes beyond the register kernels' (rustfft's own are fast),
+    /// and factors past the wide stages' limit.
     #[test]
-    fn only_odd_products_of_small_coprime_factors_are_planned() {
+    fn only_odd_products_of_coprime_factors_the_stages_take_are_planned() {
         for n in [
             1,
             2,
@@ -378,17 +481,21 @@ mod tests {
             13,
             25,
             27,
-            17 * 3,
+            113,
+            25 * 3,
             49 * 3,
             200,
-            201,
+            201 * 2,
             818,
             820,
-            3 * 31,
+            3 * 263,
+            17 * 263,
         ] {
             assert!(PrimeFactorFft::new(n).is_none(), "{n}");
         }
         assert_eq!(prime_powers(819), vec![9, 7, 13]);
-        assert_eq!(PrimeFactorFft::new(819).map(|p| p.n), Some(819));
+        for n in [819, 3 * 17, 3 * 31, 201, 29 * 113, 3 * 17 * 257] {
+            assert_eq!(PrimeFactorFft::new(n).map(|p| p.n), Some(n));
+        }
     }
 }
