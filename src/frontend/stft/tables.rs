@@ -6,7 +6,7 @@ use std::sync::Arc;
 use realfft::{RealFftPlanner, RealToComplex};
 use rustfft::num_complex::Complex;
 
-use super::prime_factor::{PrimeFactorFft, WIDE_MIN_POINTS};
+use super::prime_factor::PrimeFactorFft;
 use super::{band_weights, BandBins};
 use crate::frontend::Band;
 
@@ -65,15 +65,15 @@ pub(super) fn shared_complex_plan(nfft: usize) -> Arc<dyn rustfft::Fft<f64>> {
 
 /// The prime-factor plan of an odd length (see [`super::prime_factor`]), made once per length in
 /// the process; `None` where it does not apply or is not the faster transform on this CPU (it
-/// beats rustfft's plan only in AVX-512 lanes: 1.6 against 2.2 µs for 819 points; with a wide
-/// factor only from [`WIDE_MIN_POINTS`] points on: 17 against 32 µs for 3277).
+/// beats rustfft's plan only in AVX-512 lanes, and there as [`PrimeFactorFft::expected_faster`]
+/// says: 1.6 against 2.2 µs for 819 points, 16 against 30 for 3277).
 pub(super) fn shared_prime_factor(nfft: usize) -> Option<Arc<PrimeFactorFft>> {
     static PLANS: SharedTables<usize, Option<Arc<PrimeFactorFft>>> = std::sync::OnceLock::new();
     #[cfg(target_arch = "x86_64")]
     if crate::frontend::simd::Isa::detect() == crate::frontend::simd::Isa::Avx512 {
         return shared(&PLANS, nfft, || {
             PrimeFactorFft::new(nfft)
-                .filter(|plan| !plan.has_wide_stage() || nfft >= WIDE_MIN_POINTS)
+                .filter(PrimeFactorFft::expected_faster)
                 .map(Arc::new)
         });
     }

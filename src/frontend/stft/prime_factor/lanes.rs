@@ -31,6 +31,14 @@ pub(super) trait Lanes: Copy {
     unsafe fn sub(self, b: Self) -> Self;
     /// c · x + self (fused where the instruction set has it).
     unsafe fn mul_add(self, c: Self, x: Self) -> Self;
+    /// The `WIDTH` values at `p`.
+    unsafe fn read(p: *const f64) -> Self;
+    /// The lanes to the `WIDTH` values at `p`.
+    unsafe fn write(self, p: *mut f64);
+    /// self · b.
+    unsafe fn mul(self, b: Self) -> Self;
+    /// self − c · x (fused where the instruction set has it).
+    unsafe fn neg_mul_add(self, c: Self, x: Self) -> Self;
 }
 
 /// Portable code: one line at a time, multiply and add separate.
@@ -71,6 +79,22 @@ impl Lanes for f64 {
     #[inline(always)]
     unsafe fn mul_add(self, c: Self, x: Self) -> Self {
         c * x + self
+    }
+    #[inline(always)]
+    unsafe fn read(p: *const f64) -> Self {
+        *p
+    }
+    #[inline(always)]
+    unsafe fn write(self, p: *mut f64) {
+        *p = self
+    }
+    #[inline(always)]
+    unsafe fn mul(self, b: Self) -> Self {
+        self * b
+    }
+    #[inline(always)]
+    unsafe fn neg_mul_add(self, c: Self, x: Self) -> Self {
+        self - c * x
     }
 }
 
@@ -172,6 +196,22 @@ mod x86 {
         #[inline(always)]
         unsafe fn mul_add(self, c: Self, x: Self) -> Self {
             F64x8(_mm512_fmadd_pd(c.0, x.0, self.0))
+        }
+        #[inline(always)]
+        unsafe fn read(p: *const f64) -> Self {
+            F64x8(_mm512_loadu_pd(p))
+        }
+        #[inline(always)]
+        unsafe fn write(self, p: *mut f64) {
+            _mm512_storeu_pd(p, self.0)
+        }
+        #[inline(always)]
+        unsafe fn mul(self, b: Self) -> Self {
+            F64x8(_mm512_mul_pd(self.0, b.0))
+        }
+        #[inline(always)]
+        unsafe fn neg_mul_add(self, c: Self, x: Self) -> Self {
+            F64x8(_mm512_fnmadd_pd(c.0, x.0, self.0))
         }
     }
 }

@@ -24,6 +24,7 @@
 use rustfft::num_complex::Complex;
 
 mod lanes;
+mod rader;
 mod stages;
 mod wide;
 
@@ -54,15 +55,23 @@ struct Stage {
     /// The product of the factors before this axis, and of those after it (its stride).
     outer: usize,
     inner: usize,
-    /// A wide factor's tables as [`wide`] reads them (empty for the others).
+    /// A wide factor's tables as [`wide`] reads them (empty for the others and Rader's).
     blocked: Vec<f64>,
+    /// A wide prime from [`RADER_MIN`] on, where Rader's plan applies.
+    rader: Option<Box<rader::Rader>>,
 }
 
-/// The shortest length given a wide stage in the STFT ([`super::tables::shared_prime_factor`]):
-/// below it rustfft's plans were as fast or faster (one core of the AVX-512 machine of the
-/// README, a frame pair each: 51, 95, 205, 255 and 345 points 1.1–3× slower through the wide
-/// stages; 287, 301, 323 and every length tried from 357 to 16385 faster, by 1.1–2×).
-pub(super) const WIDE_MIN_POINTS: usize = 350;
+/// The smallest wide prime taken by Rader's algorithm ([`rader`]) instead of the direct sum
+/// (one core of the README's AVX-512 machine, a frame pair each: 3 · 17 · 257 63 against 98 µs,
+/// 29 · 113 15.7 against 16.5; with 17, 29, 41, 73 or 89 by Rader's the lengths tried were
+/// 1–13 % slower, with 97 0–9 % faster).
+const RADER_MIN: usize = 100;
+
+/// The shortest length given a wide stage ([`PrimeFactorFft::expected_faster`]): below it
+/// rustfft's plans were as fast or faster (one core of the AVX-512 machine of the README, a frame
+/// pair each: 51, 95, 205, 255 and 345 points 1.1–3× slower through the wide stages; 287, 301,
+/// 323 and every length tried from 357 to 16385 faster, by 1.1–2×).
+const WIDE_MIN_POINTS: usize = 350;
 
 /// A planned prime-factor FFT of one odd length (forward, unnormalised, as rustfft's).
 #[derive(Debug)]
@@ -104,6 +113,12 @@ impl PrimeFactorFft {
     /// axis to take the lanes from), or has a prime-power factor that is neither one of
     /// [`FACTORS`] nor a power of a prime above 13 up to [`WIDE_MAX`].
     pub(super) fn new(n: usize) -> Option<PrimeFactorFft> {
+        Self::with_rader_from(n, RADER_MIN)
+    }
+
+    /// As [`PrimeFactorFft::new`], the wide primes from `rader_min` on by Rader's algorithm
+    /// (where it applies), the others by the direct sum.
+    fn with_rader_from(n: usize, rader_min: usize) -> Option<PrimeFactorFft> {
         if n < 15 || n.is_multiple_of(2) || n > u32::MAX as usize / 2 {
             return None;
         }
@@ -143,7 +158,7 @@ impl PrimeFactorFft {
             .iter()
             .zip(&strides)
             .map(|(&r, &inner)| {
-                let stage = Stage::new(r, outer, inner);
+                let stage = Stage::new(r, outer, inner, rader_min);
                 outer *= r;
                 stage
             })
@@ -176,9 +191,18 @@ impl PrimeFactorFft {
         self.n
     }
 
-    /// Whether a stage is a [`wide`] one (a factor above 13).
-    pub(super) fn has_wide_stage(&self) -> bool {
-        self.stages.iter().any(|s| !FACTORS.contains(&s.r))
+    /// Whether this plan is expected to beat rustfft's on an AVX-512 CPU (one core of the
+    /// README's machine, a frame pair each): with the register kernels only, always (819: 1.6
+    /// against 2.2 µs); with a wide factor, from [`WIDE_MIN_POINTS`] points on, and only if the
+    /// innermost axis, when wide, has a vector of lines or more (3 · 193: 3 lines in 8 lanes,
+    /// 5.9 against 3.0 µs; 5 · 193 5.6 against 5.2).
+    pub(super) fn expected_faster(&self) -> bool {
+        let wide = |stage: &Stage| !FACTORS.contains(&stage.r);
+        let Some(last) = self.stages.last() else {
+            return false;
+        };
+        !self.stages.iter().any(wide)
+            || (self.n >= WIDE_MIN_POINTS && (!wide(last) || self.n / last.r >= PAD))
     }
 
     /// `spectrum` (resized to N) = the DFT of z = a + i b, both windowed ([`FramePair`]).
@@ -346,7 +370,8 @@ fn prime_powers(mut n: usize) -> Vec<usize> {
 }
 
 impl Stage {
-    fn new(r: usize, outer: usize, inner: usize) -> Stage {
+    /// The stage of factor r (Rader's for a wide prime from `rader_min` on).
+    fn new(r: usize, outer: usize, inner: usize, rader_min: usize) -> Stage {
         let h = (r - 1) / 2;
         let angle =
             |j: usize, k: usize| 2.0 * std::f64::consts::PI * ((j * k) % r) as f64 / r as f64;
@@ -356,7 +381,11 @@ impl Stage {
                 .collect::<Vec<f64>>()
         };
         let (cos, sin) = (table(f64::cos), table(f64::sin));
-        let blocked = match FACTORS.contains(&r) {
+        let rader = match FACTORS.contains(&r) || r < rader_min {
+            true => None,
+            false => rader::Rader::new(r).map(Box::new),
+        };
+        let blocked = match FACTORS.contains(&r) || rader.is_some() {
             true => Vec::new(),
             false => wide::blocked_table(h, &cos, &sin),
         };
@@ -367,6 +396,7 @@ impl Stage {
             outer,
             inner,
             blocked,
+            rader,
         }
     }
 }
@@ -419,7 +449,12 @@ mod tests {
             5 * 7 * 11,
             // Wide factors (primes above 13): first, last and middle axes, with small ones
             // and each other, tails of every K_BLOCK remainder (H = 8 … 14, 56,
-            // 128), the 200 ms windows at 16384 Hz (29 · 113) and 65536 Hz (3 · 17 · 257).
+            // 128), the 200 ms windows at 16384 Hz (29 · 113) and 65536 Hz (3 · 17 · 257);
+            // for Rader's, p − 1 = 2 · 4 · 5, 4 · 13, 2 · 4 · 4 · 3 and 4 · 4 · 4 · 3 too.
+            3 * 41,
+            5 * 53,
+            3 * 97,
+            5 * 193,
             3 * 17,
             17 * 19,
             5 * 23,
@@ -430,9 +465,17 @@ mod tests {
             29 * 113,
             3 * 17 * 257,
         ];
+        // Each wide prime by the direct sum, and by Rader's wherever it applies.
+        let plans = [usize::MAX, 0].iter().flat_map(|&rader_min| {
+            lengths.iter().map(move |&n| {
+                PrimeFactorFft::with_rader_from(n, rader_min)
+                    .unwrap_or_else(|| panic!("{n} planned"))
+            })
+        });
+        let plans: Vec<PrimeFactorFft> = plans.collect();
         for isa in Isa::available() {
-            for n in lengths {
-                let plan = PrimeFactorFft::new(n).unwrap_or_else(|| panic!("{n} planned"));
+            for plan in &plans {
+                let n = plan.n;
                 let len = n - n / 5;
                 let a: Vec<f64> = (0..len)
                     .map(|j| (0.37 * j as f64).sin() + ((j * 7919) % 101) as f64 * 1e-2)

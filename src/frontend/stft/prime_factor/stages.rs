@@ -37,17 +37,30 @@ pub(super) unsafe fn in_place<V: Lanes, const R: usize, const H: usize>(
     for outer in 0..stage.outer {
         let base = outer * R * inner;
         for start in (base..base + inner).step_by(V::WIDTH) {
-            let mut x = Line::<V, R>::zero();
-            for j in 0..R {
-                x.re[j] = V::load(re, start + j * inner);
-                x.im[j] = V::load(im, start + j * inner);
-            }
-            let y = dft::<V, R, H>(&x, stage);
-            for k in 0..R {
-                y.re[k].store(re, start + k * inner);
-                y.im[k].store(im, start + k * inner);
-            }
+            dft_in_memory::<V, R, H>(stage, re, im, start, inner);
         }
+    }
+}
+
+/// The R-point DFT of one vector of lines in place: value j at `at + j · stride` of `re` and
+/// `im`.
+#[inline(always)]
+pub(super) unsafe fn dft_in_memory<V: Lanes, const R: usize, const H: usize>(
+    stage: &Stage,
+    re: &mut [f64],
+    im: &mut [f64],
+    at: usize,
+    stride: usize,
+) {
+    let mut x = Line::<V, R>::zero();
+    for j in 0..R {
+        x.re[j] = V::load(re, at + j * stride);
+        x.im[j] = V::load(im, at + j * stride);
+    }
+    let y = dft::<V, R, H>(&x, stage);
+    for k in 0..R {
+        y.re[k].store(re, at + k * stride);
+        y.im[k].store(im, at + k * stride);
     }
 }
 

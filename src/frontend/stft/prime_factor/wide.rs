@@ -40,7 +40,7 @@ pub(super) struct WideScratch {
     /// Value j of the lanes' lines: real parts at vector j, imaginary parts at vector r + j.
     lines: Vec<f64>,
     /// For j = 1 … H, vectors 4(j−1) … 4(j−1)+3: the real and imaginary parts of x_j + x_{r−j},
-    /// then of x_j − x_{r−j}.
+    /// then of x_j − x_{r−j}; or Rader's convolution (2(r − 1) vectors, as many).
     pairs: Vec<f64>,
 }
 
@@ -78,8 +78,16 @@ pub(super) unsafe fn in_place<V: Lanes>(
                 start,
                 inner,
             };
-            let x0 = pair_up::<V, _>(r, &mut scratch.pairs, &lines);
-            outputs::<V, _>(stage, x0, &scratch.pairs, &mut lines);
+            match &stage.rader {
+                Some(rader) => {
+                    let x0 = rader.load::<V, _>(&lines, &mut scratch.pairs);
+                    rader.finish::<V, _>(x0, &mut scratch.pairs, &mut lines);
+                }
+                None => {
+                    let x0 = pair_up::<V, _>(r, &mut scratch.pairs, &lines);
+                    outputs::<V, _>(stage, x0, &scratch.pairs, &mut lines);
+                }
+            }
         }
     }
 }
@@ -127,26 +135,35 @@ pub(super) unsafe fn last<V: Lanes>(
                 }
             }
         }
-        let x0 = pair_up::<V, _>(r, pairs, &Columns { columns, r });
+        let values = Columns { columns, r };
         let mut bins = Scatter {
             spectrum: &mut *spectrum,
             bins: &scatter[start * r..(start + lanes) * r],
             lanes,
             r,
         };
-        outputs::<V, _>(stage, x0, pairs, &mut bins);
+        match &stage.rader {
+            Some(rader) => {
+                let x0 = rader.load::<V, _>(&values, pairs);
+                rader.finish::<V, _>(x0, pairs, &mut bins);
+            }
+            None => {
+                let x0 = pair_up::<V, _>(r, pairs, &values);
+                outputs::<V, _>(stage, x0, pairs, &mut bins);
+            }
+        }
     }
 }
 
 /// Where a vector of lines has its values (no closures: one not inlined would run the
 /// intrinsics as calls).
-trait LineValues<V> {
+pub(super) trait LineValues<V> {
     /// Value j of the lines: real and imaginary parts.
     unsafe fn value(&self, j: usize) -> (V, V);
 }
 
 /// Where a vector of lines' bins go.
-trait LineBins<V> {
+pub(super) trait LineBins<V> {
     /// Bin k of the lines: real and imaginary parts.
     unsafe fn put(&mut self, k: usize, re: V, im: V);
 }
