@@ -3,7 +3,8 @@
 //! 257 of 13107 at 65536 Hz). rustfft runs such factors as scalar butterflies or through Rader's
 //! and Bluestein's algorithms, 9–10 ns a point against 2–3 for lengths of small factors; the
 //! direct sum costs r²/4 complex multiply-adds per line, but in AVX-512 lanes at two fused
-//! multiply-adds a cycle that is still a fraction of rustfft's time up to a few hundred.
+//! multiply-adds a cycle that is still a fraction of rustfft's time for the smaller primes.
+//! From [`super::RADER_MIN`] on, the stage takes Rader's algorithm ([`super::rader`]) instead.
 //!
 //! Eight lines side by side, as in [`super::stages`], but from memory: one pass forms the sums
 //! and differences x_j ± x_{r−j} of every j into a scratch array, then each block of
