@@ -248,6 +248,19 @@ pub(super) fn with_frame_buffers<R>(f: impl FnOnce(&mut FrameBuffers) -> R) -> R
 mod tests {
     use super::*;
 
+    /// The oracle: realfft's r2c of `frame · window` (zero beyond, to `nfft` points), then the
+    /// power of each bin.
+    fn realfft_powers(frame: &[f64], window: &[f64], nfft: usize) -> Vec<f64> {
+        let real = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
+        let mut input = real.make_input_vec();
+        for ((d, &v), &g) in input.iter_mut().zip(frame).zip(window) {
+            *d = v * g;
+        }
+        let mut out = real.make_output_vec();
+        real.process(&mut input, &mut out).unwrap();
+        out.iter().map(|c| c.norm_sqr()).collect()
+    }
+
     /// The even-length path with rustfft's plan of M, whatever the CPU would pick.
     fn rustfft_even(nfft: usize) -> Transform {
         Transform::Even {
@@ -279,15 +292,7 @@ mod tests {
                     .collect();
                 let mut buffers = FrameBuffers::default();
                 rustfft_even(nfft).frame_power(isa, &x, &window, &mut buffers);
-                // The oracle: realfft's r2c, then the power of each bin.
-                let real = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
-                let mut input = real.make_input_vec();
-                for ((d, &v), &g) in input.iter_mut().zip(&x).zip(&window) {
-                    *d = v * g;
-                }
-                let mut out = real.make_output_vec();
-                real.process(&mut input, &mut out).unwrap();
-                let expected: Vec<f64> = out.iter().map(|c| c.re * c.re + c.im * c.im).collect();
+                let expected = realfft_powers(&x, &window, nfft);
                 assert_eq!(buffers.power.len(), expected.len(), "{isa:?} N {nfft}");
                 for (k, (a, b)) in buffers.power.iter().zip(&expected).enumerate() {
                     assert_eq!(
@@ -320,14 +325,7 @@ mod tests {
             let window: Vec<f64> = (0..w)
                 .map(|i| 0.5 - 0.5 * (i as f64 * 0.02).cos())
                 .collect();
-            let real = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
-            let mut input = real.make_input_vec();
-            for ((d, &v), &g) in input.iter_mut().zip(&x).zip(&window) {
-                *d = v * g;
-            }
-            let mut out = real.make_output_vec();
-            real.process(&mut input, &mut out).unwrap();
-            let expected: Vec<f64> = out.iter().map(|c| c.norm_sqr()).collect();
+            let expected = realfft_powers(&x, &window, nfft);
             let scale = expected.iter().fold(0.0f64, |m, &p| m.max(p));
             let forced = Transform::EvenPrimeFactor {
                 half: Arc::new(PrimeFactorFft::new(nfft / 2).expect("planned")),
@@ -425,16 +423,7 @@ mod tests {
                 .map(|i| 0.5 - 0.5 * (i as f64 * 0.02).cos())
                 .collect();
             let (a, b) = (&x[..w], &x[5..w + 5]);
-            let oracle = |frame: &[f64]| {
-                let real = realfft::RealFftPlanner::<f64>::new().plan_fft_forward(nfft);
-                let mut input = real.make_input_vec();
-                for ((d, &v), &g) in input.iter_mut().zip(frame).zip(&window) {
-                    *d = v * g;
-                }
-                let mut out = real.make_output_vec();
-                real.process(&mut input, &mut out).unwrap();
-                out.iter().map(|c| c.norm_sqr()).collect::<Vec<f64>>()
-            };
+            let oracle = |frame: &[f64]| realfft_powers(frame, &window, nfft);
             let forced = Transform::PrimeFactor(Arc::new(PrimeFactorFft::new(nfft).unwrap()));
             for transform in [forced, Transform::new(nfft)] {
                 for isa in Isa::available() {
