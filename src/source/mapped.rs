@@ -38,7 +38,10 @@ unsafe impl Sync for MappedBytes {}
 
 impl MappedBytes {
     /// The file's bytes from its current read position on, when it is a regular file with at
-    /// least one byte left and mapping is allowed; `None` otherwise (read it as a stream).
+    /// least one byte left and mapping is allowed; `None` otherwise (read it as a stream). The
+    /// position is then moved to the file's end, where reading the rest would have left it: a
+    /// command after dampscope on the same standard input (`{ dampscope analyze - …; cat; } <
+    /// file`) sees what it would see after any reader, not the same bytes again.
     #[cfg(unix)]
     pub(crate) fn rest_of(file: &File) -> Option<Self> {
         use std::os::fd::AsRawFd;
@@ -77,6 +80,8 @@ impl MappedBytes {
         if base == libc::MAP_FAILED {
             return None;
         }
+        // SAFETY: as above; the new position is the file's size, a valid offset.
+        unsafe { libc::lseek(fd, size as libc::off_t, libc::SEEK_SET) };
         Some(MappedBytes {
             base,
             map_len,
@@ -214,6 +219,29 @@ mod tests {
         let mut v = 0u8;
         // SAFETY: mincore only inspects the address range and writes one byte for one page.
         unsafe { libc::mincore(start, page, &mut v) == 0 }
+    }
+
+    /// The mapping starts at the file's read position and leaves it at the end, as a reader
+    /// of the rest would.
+    #[test]
+    fn mapping_the_rest_consumes_it_like_a_reader() {
+        use std::io::{Read, Seek};
+        let path = std::env::temp_dir().join(format!("dampscope-rest-{}", std::process::id()));
+        let bytes: Vec<u8> = (0..10_000).map(|i| (i % 253) as u8).collect();
+        std::fs::File::create(&path)
+            .unwrap()
+            .write_all(&bytes)
+            .unwrap();
+        let mut file = std::fs::File::open(&path).unwrap();
+        file.read_exact(&mut [0u8; 4100]).unwrap();
+        let map = Arc::new(MappedBytes::rest_of(&file).unwrap());
+        assert_eq!(map.len(), 10_000 - 4100);
+        assert_eq!(map.slice(0..map.len()), &bytes[4100..]);
+        assert_eq!(file.stream_position().unwrap(), 10_000);
+        assert_eq!(file.read(&mut [0u8; 16]).unwrap(), 0);
+        // Nothing left: read as a stream (which reads nothing).
+        assert!(MappedBytes::rest_of(&file).is_none());
+        std::fs::remove_file(&path).ok();
     }
 
     /// A dropped range gives back exactly its whole pages: the pages it shares with its
