@@ -53,7 +53,7 @@ const PAD: usize = 8;
 #[derive(Debug)]
 struct Stage {
     r: usize,
-    /// cos(2π jk / r) for k, j = 1 … (r−1)/2, row k−1.
+    /// cos(2π jk / r) for k, j = 1 … (r−1)/2, row k−1 (the register kernels' stages only).
     cos: Vec<f64>,
     /// sin(2π jk / r), laid out like `cos`.
     sin: Vec<f64>,
@@ -385,15 +385,20 @@ impl Stage {
                 .flat_map(|k| (1..=h).map(move |j| f(angle(j, k))))
                 .collect::<Vec<f64>>()
         };
-        let (cos, sin) = (table(f64::cos), table(f64::sin));
         let rader = match FACTORS.contains(&r) || r < rader_min {
             true => None,
             false => rader::Rader::new(r).map(Box::new),
         };
-        let blocked = match FACTORS.contains(&r) || rader.is_some() {
-            true => Vec::new(),
-            false => wide::blocked_table(h, &cos, &sin),
-        };
+        // Each kind of stage keeps the tables it reads, no more (for 257, 2 · 128² sines and
+        // cosines would be most of a plan's making).
+        let (mut cos, mut sin, mut blocked) = (Vec::new(), Vec::new(), Vec::new());
+        if rader.is_none() {
+            (cos, sin) = (table(f64::cos), table(f64::sin));
+            if !FACTORS.contains(&r) {
+                blocked = wide::blocked_table(h, &cos, &sin);
+                (cos, sin) = (Vec::new(), Vec::new());
+            }
+        }
         Stage {
             r,
             cos,
