@@ -122,18 +122,20 @@ impl<const L: usize> Group<L> {
 
     /// The frame sums of the group's first `bands` lanes, cleared: lane l's frame energy
     /// 2Σ|z|²/hop and lag product Σ z·conj(z[m−1]) to `out` at `first + l·stride`.
+    #[inline(always)]
     fn take_sums(&mut self, bands: usize, hop: usize, out: FrameOut<'_>, first: usize) {
-        let s = std::mem::replace(&mut self.sums, [[0.0; L]; 6]);
-        let energy: Lanes<L> = std::array::from_fn(|l| 2.0 * (s[0][l] + s[1][l]) / hop as f64);
-        let lag_re: Lanes<L> = std::array::from_fn(|l| s[2][l] + s[3][l]);
-        let lag_im: Lanes<L> = std::array::from_fn(|l| s[4][l] - s[5][l]);
-        let lanes = energy.iter().zip(&lag_re).zip(&lag_im).take(bands);
-        for (l, ((&e, &re), &im)) in lanes.enumerate() {
+        // Lane by lane from the sums in place: building the three rows as vectors first put
+        // them on the stack and read them back a lane at a time, a store-forwarding stall per
+        // value (the frame take was 15 % of the bank at 4096 Hz).
+        let s = &self.sums;
+        #[allow(clippy::needless_range_loop)] // six rows by one lane index: clearer than a zip
+        for l in 0..bands.min(L) {
             let at = first + l * out.stride;
-            out.energy[at] = e;
-            out.lag_re[at] = re;
-            out.lag_im[at] = im;
+            out.energy[at] = 2.0 * (s[0][l] + s[1][l]) / hop as f64;
+            out.lag_re[at] = s[2][l] + s[3][l];
+            out.lag_im[at] = s[4][l] - s[5][l];
         }
+        self.sums = [[0.0; L]; 6];
     }
 
     /// Runs the group over `xs` (backwards when `reversed`) with its state held in locals.
@@ -358,7 +360,23 @@ impl Kernel {
     /// energy and lag product Σ z·conj(z[m−1]) at `b·out.stride + frame`. The frame's frequency
     /// is `f_h + arg(lag)·fs/2π` ([`crate::frontend::lane_atan2::frame_frequency`] with
     /// [`Kernel::heterodyne_hz`]), taken for whole decays at once.
-    pub(super) fn take_frame(&mut self, hop: usize, frame: usize, mut out: FrameOut<'_>) {
+    pub(super) fn take_frame(&mut self, hop: usize, frame: usize, out: FrameOut<'_>) {
+        match self.isa {
+            #[cfg(target_arch = "x86_64")]
+            // SAFETY: `Isa::detect` found AVX-512F on this CPU.
+            Isa::Avx512 => unsafe { self.take_frame_avx512(hop, frame, out) },
+            _ => self.take_frame_in_lanes(hop, frame, out),
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    unsafe fn take_frame_avx512(&mut self, hop: usize, frame: usize, out: FrameOut<'_>) {
+        self.take_frame_in_lanes(hop, frame, out)
+    }
+
+    #[inline(always)]
+    fn take_frame_in_lanes(&mut self, hop: usize, frame: usize, mut out: FrameOut<'_>) {
         let (nb, stride) = (self.freq_hz.len(), out.stride);
         let mut band = 0;
         for g in &mut self.wide {
