@@ -1,6 +1,8 @@
 //! The filtering kernel of the Goyder bank: every band's heterodyne and all-pole low-pass,
 //! interleaved so that one CPU vector instruction advances 4 or 8 bands (an AVX2 or AVX-512
-//! register; [`super::super::simd::group_counts`]) by one sample.
+//! register; [`super::super::simd::group_counts`], but on AVX-512 groups of 8 only) by one
+//! sample. On AVX-512 the frames are taken inside the loop, the state in registers
+//! ([`in_registers`]).
 //!
 //! Per band and sample (f_h = band middle, G = the low-pass's DC gain folded into the
 //! oscillator's amplitude so the sections need no input multiply):
@@ -24,6 +26,9 @@
 
 use super::super::simd::{group_counts, madd, mul, nmadd, splat, Isa, Lanes, NARROW, WIDE};
 use super::super::Band;
+
+#[cfg(target_arch = "x86_64")]
+mod in_registers;
 
 /// Samples between exact resynchronisations of the heterodyne oscillators.
 pub(super) const RESYNC_SAMPLES: usize = 512;
@@ -245,9 +250,16 @@ impl Kernel {
         Kernel::with_isa(bands, order, fs_hz, Isa::detect())
     }
 
-    fn with_isa(bands: &[Band], order: usize, fs_hz: f64, isa: Isa) -> Self {
+    /// The kernel for `bands` on instruction set `isa` (one of [`Isa::available`]).
+    pub(super) fn with_isa(bands: &[Band], order: usize, fs_hz: f64, isa: Isa) -> Self {
         let nb = bands.len();
-        let (n_wide, n_narrow) = group_counts(isa, nb);
+        // On AVX-512, wide groups only (a narrow group's 256-bit instructions cost as much as a
+        // wide one's, and the frames then stay in registers: `frames_in_registers`).
+        let (n_wide, n_narrow) = match isa {
+            #[cfg(target_arch = "x86_64")]
+            Isa::Avx512 => (nb.div_ceil(WIDE), 0),
+            _ => group_counts(isa, nb),
+        };
         let mut kernel = Kernel {
             freq_hz: Vec::with_capacity(nb),
             gain: Vec::with_capacity(nb),
@@ -387,6 +399,51 @@ impl Kernel {
             g.take_sums(nb - band, hop, out.reborrow(), band * stride + frame);
             band += NARROW;
         }
+    }
+
+    /// Whether [`Kernel::filter_frames`] runs here: AVX-512, and every band in a wide group.
+    pub(super) fn frames_in_registers(&self) -> bool {
+        #[cfg(target_arch = "x86_64")]
+        return self.isa == Isa::Avx512 && self.narrow.is_empty() && !self.wide.is_empty();
+        #[cfg(not(target_arch = "x86_64"))]
+        false
+    }
+
+    /// Filters `xs`, samples `start …` of the decay (in reverse order when `reversed`), through
+    /// every band, accumulating, and moves each frame completed on the way to `out` (band b's
+    /// frame k at `b · out.stride + k`), each group's state in registers across the frames:
+    /// the same bits as [`Kernel::filter_span`] cut at every frame boundary with a
+    /// [`Kernel::take_frame`] after each. Only where [`Kernel::frames_in_registers`] (panics
+    /// elsewhere: a caller's bug).
+    pub(super) fn filter_frames(
+        &mut self,
+        run: (&[f64], usize),
+        reversed: bool,
+        hop: usize,
+        out: &mut FrameOut<'_>,
+    ) {
+        assert!(
+            self.frames_in_registers(),
+            "frames in registers need AVX-512"
+        );
+        #[cfg(target_arch = "x86_64")]
+        {
+            let (nb, stride, sections) = (self.freq_hz.len(), out.stride, self.sections);
+            for (i, g) in self.wide.iter_mut().enumerate() {
+                let (bands, first) = ((nb - i * WIDE, hop), i * WIDE * stride);
+                // SAFETY: `Isa::detect` found AVX-512F and FMA on this CPU (checked above).
+                unsafe {
+                    match sections {
+                        1 => in_registers::run_frames::<1>(g, run, reversed, bands, out, first),
+                        2 => in_registers::run_frames::<2>(g, run, reversed, bands, out, first),
+                        3 => in_registers::run_frames::<3>(g, run, reversed, bands, out, first),
+                        _ => in_registers::run_frames::<4>(g, run, reversed, bands, out, first),
+                    }
+                }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        let _ = (run, reversed, hop, out);
     }
 
     /// Each band's heterodyne frequency f_h, Hz.

@@ -81,6 +81,102 @@ pub struct GoyderFrontEnd {
     designs: Vec<(f64, Vec<[f64; 5]>)>,
 }
 
+/// The frames of a decay (`buffer`, `n_frames` frames of `hop` samples) through `kernel` into
+/// `out`, in spans between events: oscillator resynchronisation (every [`RESYNC_SAMPLES`]
+/// processed samples), frame boundaries (a take after each), and, reversed, the start of the
+/// kept part. Every instruction set; the oracle of [`frames_in_registers`].
+fn frames_by_spans(
+    kernel: &mut Kernel,
+    (buffer, n_frames, hop): (&[f64], usize, usize),
+    reversed: bool,
+    fs: f64,
+    out: &mut FrameOut<'_>,
+) {
+    let (n_total, used) = (buffer.len(), n_frames * hop);
+    let mut flush = |kernel: &mut Kernel, k: usize| {
+        let out = FrameOut {
+            energy: &mut *out.energy,
+            lag_re: &mut *out.lag_re,
+            lag_im: &mut *out.lag_im,
+            stride: out.stride,
+        };
+        kernel.take_frame(hop, k, out);
+    };
+    if reversed {
+        let (mut n_end, mut m) = (n_total, 0usize);
+        while n_end > 0 {
+            if m % RESYNC_SAMPLES == 0 {
+                kernel.resync(m, fs);
+            }
+            let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
+            let lo = if n_end > used {
+                used.max(cap)
+            } else {
+                ((n_end - 1) / hop * hop).max(cap)
+            };
+            kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
+            m += n_end - lo;
+            if n_end <= used && lo.is_multiple_of(hop) {
+                flush(kernel, lo / hop);
+            }
+            n_end = lo;
+        }
+    } else {
+        let mut n0 = 0;
+        while n0 < used {
+            if n0 % RESYNC_SAMPLES == 0 {
+                kernel.resync(n0, fs);
+            }
+            let n1 = used
+                .min((n0 / hop + 1) * hop)
+                .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
+            kernel.filter_span(&buffer[n0..n1], false, true);
+            if n1.is_multiple_of(hop) {
+                flush(kernel, n1 / hop - 1);
+            }
+            n0 = n1;
+        }
+    }
+}
+
+/// As [`frames_by_spans`], the same bits, with the kernel taking the frames inside each span
+/// between resynchronisations ([`Kernel::filter_frames`]; AVX-512 kernels of wide groups only,
+/// [`Kernel::frames_in_registers`]).
+fn frames_in_registers(
+    kernel: &mut Kernel,
+    (buffer, n_frames, hop): (&[f64], usize, usize),
+    reversed: bool,
+    fs: f64,
+    out: &mut FrameOut<'_>,
+) {
+    let (n_total, used) = (buffer.len(), n_frames * hop);
+    if reversed {
+        let (mut n_end, mut m) = (n_total, 0usize);
+        while n_end > 0 {
+            if m % RESYNC_SAMPLES == 0 {
+                kernel.resync(m, fs);
+            }
+            let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
+            let lo = if n_end > used { used.max(cap) } else { cap };
+            match n_end > used {
+                true => kernel.filter_span(&buffer[lo..n_end], true, false),
+                false => kernel.filter_frames((&buffer[lo..n_end], lo), true, hop, out),
+            }
+            (m, n_end) = (m + n_end - lo, lo);
+        }
+    } else {
+        let mut n0 = 0;
+        while n0 < used {
+            if n0 % RESYNC_SAMPLES == 0 {
+                kernel.resync(n0, fs);
+            }
+            let n1 = used.min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
+            kernel.filter_frames((&buffer[n0..n1], n0), false, hop, out);
+            n0 = n1;
+        }
+    }
+}
+
 impl GoyderFrontEnd {
     /// The `n_frames` frames of a decay from its samples, in the bank's direction, to `sink`.
     fn filter_decay(&mut self, buffer: &[f64], n_frames: usize, sink: &mut dyn FrameSink) {
@@ -117,61 +213,22 @@ impl GoyderFrontEnd {
         freq: &mut [f64],
         lag_im: &mut [f64],
     ) {
-        let (n_total, hop) = (buffer.len(), self.hop);
-        let used = n_frames * hop;
-        let fs = self.sample_rate_hz;
+        let (hop, fs) = (self.hop, self.sample_rate_hz);
+        let reversed = self.settings.direction == FilterDirection::Reversed;
         let kernel = &mut self.kernel;
         kernel.clear();
         // Each frame's bands straight to their runs of frames (the real parts of the lag
         // products where the frequencies will be).
-        let mut flush = |kernel: &mut Kernel, k: usize| {
-            let out = FrameOut {
-                energy: &mut *energy,
-                lag_re: &mut *freq,
-                lag_im: &mut *lag_im,
-                stride: n_frames,
-            };
-            kernel.take_frame(hop, k, out);
+        let mut out = FrameOut {
+            energy: &mut *energy,
+            lag_re: &mut *freq,
+            lag_im: &mut *lag_im,
+            stride: n_frames,
         };
-        // Spans between events: oscillator resynchronisation (every RESYNC_SAMPLES processed
-        // samples), frame boundaries, and the start of the kept part (reversed mode).
-        match self.settings.direction {
-            FilterDirection::Reversed => {
-                let (mut n_end, mut m) = (n_total, 0usize);
-                while n_end > 0 {
-                    if m % RESYNC_SAMPLES == 0 {
-                        kernel.resync(m, fs);
-                    }
-                    let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
-                    let lo = if n_end > used {
-                        used.max(cap)
-                    } else {
-                        ((n_end - 1) / hop * hop).max(cap)
-                    };
-                    kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
-                    m += n_end - lo;
-                    if n_end <= used && lo.is_multiple_of(hop) {
-                        flush(kernel, lo / hop);
-                    }
-                    n_end = lo;
-                }
-            }
-            FilterDirection::Forward => {
-                let mut n0 = 0;
-                while n0 < used {
-                    if n0 % RESYNC_SAMPLES == 0 {
-                        kernel.resync(n0, fs);
-                    }
-                    let n1 = used
-                        .min((n0 / hop + 1) * hop)
-                        .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
-                    kernel.filter_span(&buffer[n0..n1], false, true);
-                    if n1.is_multiple_of(hop) {
-                        flush(kernel, n1 / hop - 1);
-                    }
-                    n0 = n1;
-                }
-            }
+        let frames = (buffer, n_frames, hop);
+        match kernel.frames_in_registers() {
+            true => frames_in_registers(kernel, frames, reversed, fs, &mut out),
+            false => frames_by_spans(kernel, frames, reversed, fs, &mut out),
         }
         let isa = kernel.isa();
         for (b, &f_h) in kernel.heterodyne_hz().iter().enumerate() {
@@ -340,5 +397,74 @@ impl FrontEnd for GoyderFrontEnd {
             sections,
             |f_hz| self.mode_gain(band, f_hz, 0.0),
         )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::frontend::simd::Isa;
+
+    /// The frames taken inside the AVX-512 kernel are those of the spans cut at every frame
+    /// boundary, bit for bit: both directions, frames of 1 to 600 samples (across the
+    /// resynchronisation spans of 512 or not), one to three wide groups with padding lanes,
+    /// every section count, a reversed tail past the kept frames.
+    #[test]
+    fn frames_in_registers_equal_the_frames_by_spans() {
+        if !Isa::available().contains(&Isa::Avx512) {
+            return; // Nothing to compare on this CPU: the spans are the only path.
+        }
+        let fs = 4096.0;
+        let x: Vec<f64> = (0..3001)
+            .map(|n| {
+                let t = n as f64 / fs;
+                (-3.0 * t).exp() * (2.0 * std::f64::consts::PI * 180.0 * t).sin()
+                    + 0.4 * (-7.0 * t).exp() * (2.0 * std::f64::consts::PI * 611.0 * t).cos()
+                    + 1e-3 * ((n * 7919 % 1013) as f64 / 1013.0 - 0.5)
+            })
+            .collect();
+        for nb in [5, 6, 8, 16, 23] {
+            let bands: Vec<Band> = (0..nb)
+                .map(|b| Band::new(60.0 + 70.0 * b as f64, 110.0 + 70.0 * b as f64).unwrap())
+                .collect();
+            for order in [2, 4, 6, 8] {
+                let kernel = Kernel::with_isa(&bands, order, fs, Isa::Avx512);
+                assert!(kernel.frames_in_registers(), "{nb} bands");
+                for hop in [1, 4, 37, 48, 512, 600] {
+                    for reversed in [true, false] {
+                        let n_frames = x.len() / hop - usize::from(reversed);
+                        let run = |in_registers: bool| {
+                            let mut k = kernel.clone();
+                            k.clear();
+                            let mut rows = vec![vec![f64::NAN; n_frames * nb]; 3];
+                            let [e, re, im] = &mut rows[..] else {
+                                unreachable!()
+                            };
+                            let mut out = FrameOut {
+                                energy: e,
+                                lag_re: re,
+                                lag_im: im,
+                                stride: n_frames,
+                            };
+                            let frames = (&x[..], n_frames, hop);
+                            match in_registers {
+                                true => frames_in_registers(&mut k, frames, reversed, fs, &mut out),
+                                false => frames_by_spans(&mut k, frames, reversed, fs, &mut out),
+                            }
+                            rows
+                        };
+                        let (want, got) = (run(false), run(true));
+                        for (row, (w, g)) in want.iter().zip(&got).enumerate() {
+                            assert!(w.iter().all(|v| !v.is_nan()), "every frame taken");
+                            let same = w.iter().zip(g).all(|(a, b)| a.to_bits() == b.to_bits());
+                            assert!(
+                                same,
+                                "{nb} bands order {order} hop {hop} reversed {reversed} row {row}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 }
