@@ -81,75 +81,28 @@ pub struct GoyderFrontEnd {
     designs: Vec<(f64, Vec<[f64; 5]>)>,
 }
 
-/// The frames of a decay (`buffer`, `n_frames` frames of `hop` samples) through `kernel` into
-/// `out`, in spans between events: oscillator resynchronisation (every [`RESYNC_SAMPLES`]
-/// processed samples), frame boundaries (a take after each), and, reversed, the start of the
-/// kept part. Every instruction set; the oracle of [`frames_in_registers`].
-fn frames_by_spans(
-    kernel: &mut Kernel,
-    (buffer, n_frames, hop): (&[f64], usize, usize),
-    reversed: bool,
-    fs: f64,
-    out: &mut FrameOut<'_>,
-) {
-    let (n_total, used) = (buffer.len(), n_frames * hop);
-    let mut flush = |kernel: &mut Kernel, k: usize| {
-        let out = FrameOut {
-            energy: &mut *out.energy,
-            lag_re: &mut *out.lag_re,
-            lag_im: &mut *out.lag_im,
-            stride: out.stride,
-        };
-        kernel.take_frame(hop, k, out);
-    };
-    if reversed {
-        let (mut n_end, mut m) = (n_total, 0usize);
-        while n_end > 0 {
-            if m % RESYNC_SAMPLES == 0 {
-                kernel.resync(m, fs);
-            }
-            let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
-            let lo = if n_end > used {
-                used.max(cap)
-            } else {
-                ((n_end - 1) / hop * hop).max(cap)
-            };
-            kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
-            m += n_end - lo;
-            if n_end <= used && lo.is_multiple_of(hop) {
-                flush(kernel, lo / hop);
-            }
-            n_end = lo;
-        }
-    } else {
-        let mut n0 = 0;
-        while n0 < used {
-            if n0 % RESYNC_SAMPLES == 0 {
-                kernel.resync(n0, fs);
-            }
-            let n1 = used
-                .min((n0 / hop + 1) * hop)
-                .min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
-            kernel.filter_span(&buffer[n0..n1], false, true);
-            if n1.is_multiple_of(hop) {
-                flush(kernel, n1 / hop - 1);
-            }
-            n0 = n1;
-        }
-    }
+/// How the frames of a decay are taken from the kernel.
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum FrameTaking {
+    /// A span per frame, and a take after it (every instruction set; the oracle).
+    BySpans,
+    /// The kernel takes the frames inside each span ([`Kernel::filter_frames`]; AVX-512 kernels
+    /// of wide groups only, [`Kernel::frames_in_registers`]). The same bits.
+    InRegisters,
 }
 
-/// As [`frames_by_spans`], the same bits, with the kernel taking the frames inside each span
-/// between resynchronisations ([`Kernel::filter_frames`]; AVX-512 kernels of wide groups only,
-/// [`Kernel::frames_in_registers`]).
-fn frames_in_registers(
+/// The frames of a decay (`buffer`, `n_frames` frames of `hop` samples) through `kernel` into
+/// `out`, in spans between events: oscillator resynchronisation (every [`RESYNC_SAMPLES`]
+/// processed samples), reversed the start of the kept part, and by spans every frame boundary.
+fn filter_decay_frames(
     kernel: &mut Kernel,
     (buffer, n_frames, hop): (&[f64], usize, usize),
-    reversed: bool,
+    (reversed, taking): (bool, FrameTaking),
     fs: f64,
     out: &mut FrameOut<'_>,
 ) {
     let (n_total, used) = (buffer.len(), n_frames * hop);
+    let by_spans = taking == FrameTaking::BySpans;
     if reversed {
         let (mut n_end, mut m) = (n_total, 0usize);
         while n_end > 0 {
@@ -157,10 +110,18 @@ fn frames_in_registers(
                 kernel.resync(m, fs);
             }
             let cap = n_end.saturating_sub(RESYNC_SAMPLES - m % RESYNC_SAMPLES);
-            let lo = if n_end > used { used.max(cap) } else { cap };
-            match n_end > used {
-                true => kernel.filter_span(&buffer[lo..n_end], true, false),
-                false => kernel.filter_frames((&buffer[lo..n_end], lo), true, hop, out),
+            let lo = match (n_end > used, by_spans) {
+                (true, _) => used.max(cap),
+                (false, true) => ((n_end - 1) / hop * hop).max(cap),
+                (false, false) => cap,
+            };
+            if n_end > used || by_spans {
+                kernel.filter_span(&buffer[lo..n_end], true, n_end <= used);
+                if n_end <= used && lo.is_multiple_of(hop) {
+                    kernel.take_frame(hop, lo / hop, out);
+                }
+            } else {
+                kernel.filter_frames((&buffer[lo..n_end], lo), true, hop, out);
             }
             (m, n_end) = (m + n_end - lo, lo);
         }
@@ -171,8 +132,17 @@ fn frames_in_registers(
                 kernel.resync(n0, fs);
             }
             let n1 = used.min(n0 + RESYNC_SAMPLES - n0 % RESYNC_SAMPLES);
-            kernel.filter_frames((&buffer[n0..n1], n0), false, hop, out);
-            n0 = n1;
+            if by_spans {
+                let n1 = n1.min((n0 / hop + 1) * hop);
+                kernel.filter_span(&buffer[n0..n1], false, true);
+                if n1.is_multiple_of(hop) {
+                    kernel.take_frame(hop, n1 / hop - 1, out);
+                }
+                n0 = n1;
+            } else {
+                kernel.filter_frames((&buffer[n0..n1], n0), false, hop, out);
+                n0 = n1;
+            }
         }
     }
 }
@@ -225,11 +195,17 @@ impl GoyderFrontEnd {
             lag_im: &mut *lag_im,
             stride: n_frames,
         };
-        let frames = (buffer, n_frames, hop);
-        match kernel.frames_in_registers() {
-            true => frames_in_registers(kernel, frames, reversed, fs, &mut out),
-            false => frames_by_spans(kernel, frames, reversed, fs, &mut out),
-        }
+        let taking = match kernel.frames_in_registers() {
+            true => FrameTaking::InRegisters,
+            false => FrameTaking::BySpans,
+        };
+        filter_decay_frames(
+            kernel,
+            (buffer, n_frames, hop),
+            (reversed, taking),
+            fs,
+            &mut out,
+        );
         let isa = kernel.isa();
         for (b, &f_h) in kernel.heterodyne_hz().iter().enumerate() {
             let run = b * n_frames..(b + 1) * n_frames;
@@ -446,11 +422,12 @@ mod tests {
                                 lag_im: im,
                                 stride: n_frames,
                             };
+                            let taking = match in_registers {
+                                true => FrameTaking::InRegisters,
+                                false => FrameTaking::BySpans,
+                            };
                             let frames = (&x[..], n_frames, hop);
-                            match in_registers {
-                                true => frames_in_registers(&mut k, frames, reversed, fs, &mut out),
-                                false => frames_by_spans(&mut k, frames, reversed, fs, &mut out),
-                            }
+                            filter_decay_frames(&mut k, frames, (reversed, taking), fs, &mut out);
                             rows
                         };
                         let (want, got) = (run(false), run(true));
