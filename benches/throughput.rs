@@ -71,7 +71,9 @@ fn factory(fs: f64) -> FrontEndFactory {
 fn analyzer(c: &mut Criterion) {
     let mut g = c.benchmark_group("analyzer");
     g.sample_size(10);
-    for fs in [4000.0, 48000.0] {
+    // 16384 and 65536 Hz: 200 ms frames of 3277 = 29 · 113 and 13107 = 3 · 17 · 257 points,
+    // the prime-factor FFT's wide stages and Rader's.
+    for fs in [4000.0, 16384.0, 48000.0, 65536.0] {
         let x = decay(fs, 20.0, 0);
         let f = factory(fs);
         g.throughput(Throughput::Elements(x.len() as u64));
