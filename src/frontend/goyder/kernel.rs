@@ -373,22 +373,6 @@ impl Kernel {
     /// is `f_h + arg(lag)·fs/2π` ([`crate::frontend::lane_atan2::frame_frequency`] with
     /// [`Kernel::heterodyne_hz`]), taken for whole decays at once.
     pub(super) fn take_frame(&mut self, hop: usize, frame: usize, out: &mut FrameOut<'_>) {
-        match self.isa {
-            #[cfg(target_arch = "x86_64")]
-            // SAFETY: `Isa::detect` found AVX-512F on this CPU.
-            Isa::Avx512 => unsafe { self.take_frame_avx512(hop, frame, out) },
-            _ => self.take_frame_in_lanes(hop, frame, out),
-        }
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    unsafe fn take_frame_avx512(&mut self, hop: usize, frame: usize, out: &mut FrameOut<'_>) {
-        self.take_frame_in_lanes(hop, frame, out)
-    }
-
-    #[inline(always)]
-    fn take_frame_in_lanes(&mut self, hop: usize, frame: usize, out: &mut FrameOut<'_>) {
         let (nb, stride) = (self.freq_hz.len(), out.stride);
         let mut band = 0;
         for g in &mut self.wide {

@@ -16,7 +16,7 @@
 use super::lanes::Lanes;
 use super::stages::dft_in_memory;
 use super::wide::{LineBins, LineValues};
-use super::{Stage, FACTORS};
+use super::{prime_powers, smallest_prime, Stage, FACTORS};
 
 /// A planned Rader transform of one prime.
 #[derive(Debug)]
@@ -44,11 +44,7 @@ impl Rader {
     /// The plan for prime `p`, or `None` when p − 1 is not 2^a · m (a ≥ 1) with m one of the
     /// register kernels' factors or 1.
     pub(super) fn new(p: usize) -> Option<Rader> {
-        if p < 3
-            || (2..p)
-                .take_while(|d| d * d <= p)
-                .any(|d| p.is_multiple_of(d))
-        {
+        if p < 3 || smallest_prime(p) != p {
             return None;
         }
         let len = p - 1;
@@ -320,23 +316,12 @@ unsafe fn times<V: Lanes>((a_re, a_im): (V, V), (b_re, b_im): (V, V)) -> (V, V) 
 
 /// The smallest primitive root of the prime `p`.
 fn primitive_root(p: usize) -> usize {
-    let mut factors = Vec::new();
-    let mut rest = p - 1;
-    let mut f = 2;
-    while f * f <= rest {
-        if rest.is_multiple_of(f) {
-            factors.push(f);
-            while rest.is_multiple_of(f) {
-                rest /= f;
-            }
-        }
-        f += 1;
-    }
-    if rest > 1 {
-        factors.push(rest);
-    }
+    let primes: Vec<usize> = prime_powers(p - 1)
+        .into_iter()
+        .map(smallest_prime)
+        .collect();
     (2..p)
-        .find(|&g| factors.iter().all(|&f| power_mod(g, (p - 1) / f, p) != 1))
+        .find(|&g| primes.iter().all(|&f| power_mod(g, (p - 1) / f, p) != 1))
         .expect("a prime has a primitive root")
 }
 
