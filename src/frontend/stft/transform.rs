@@ -141,8 +141,16 @@ impl Transform {
     ) {
         match self {
             Transform::PrimeFactor(plan) => {
-                prime_factor_spectrum(plan, isa, (a, Some(b)), window, buffers);
-                unpack_pair_powers(isa, &buffers.pair, &mut buffers.power, &mut buffers.power_b);
+                let bins = plan.len() / 2 + 1;
+                sized(&mut buffers.power, bins, 0.0);
+                sized(&mut buffers.power_b, bins, 0.0);
+                let input = FramePair {
+                    a,
+                    b: Some(b),
+                    window,
+                };
+                let powers = (&mut buffers.power[..], &mut buffers.power_b[..]);
+                plan.pair_powers(isa, &input, &mut buffers.split, &mut buffers.pair, powers);
             }
             Transform::Odd { real, pair } => {
                 buffers.fit_odd(real.as_ref(), Some(pair.as_ref()));

@@ -18,9 +18,9 @@ pub(super) trait Lanes: Copy {
     unsafe fn load(v: &[f64], at: usize) -> Self;
     /// Lane l = `f(l)`.
     unsafe fn from_fn(f: impl Fn(usize) -> f64) -> Self;
-    /// Eight values of each of `WIDTH` lines, line l at `v[at + l · stride ..]`, as eight
+    /// Eight values of each of `WIDTH` lines, line l at `v[starts[l] + chunk ..]`, as eight
     /// vectors: vector j holds value j of every line (a transpose in registers).
-    unsafe fn load_columns(v: &[f64], at: usize, stride: usize) -> [Self; 8];
+    unsafe fn load_rows(v: &[f64], starts: &[usize; 8], chunk: usize) -> [Self; 8];
     /// `v[at .. at + WIDTH]` = the lanes.
     unsafe fn store(self, v: &mut [f64], at: usize);
     /// The lanes, in the first `WIDTH` places.
@@ -39,6 +39,8 @@ pub(super) trait Lanes: Copy {
     unsafe fn mul(self, b: Self) -> Self;
     /// self − c · x (fused where the instruction set has it).
     unsafe fn neg_mul_add(self, c: Self, x: Self) -> Self;
+    /// Lanes l and l + `WIDTH`/2 exchanged (one lane: itself).
+    unsafe fn swap_halves(self) -> Self;
 }
 
 /// Portable code: one line at a time, multiply and add separate.
@@ -57,7 +59,8 @@ impl Lanes for f64 {
         f(0)
     }
     #[inline(always)]
-    unsafe fn load_columns(v: &[f64], at: usize, _stride: usize) -> [Self; 8] {
+    unsafe fn load_rows(v: &[f64], starts: &[usize; 8], chunk: usize) -> [Self; 8] {
+        let at = starts[0] + chunk;
         v[at..at + 8].try_into().expect("eight values")
     }
     #[inline(always)]
@@ -96,6 +99,10 @@ impl Lanes for f64 {
     unsafe fn neg_mul_add(self, c: Self, x: Self) -> Self {
         self - c * x
     }
+    #[inline(always)]
+    unsafe fn swap_halves(self) -> Self {
+        self
+    }
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -131,11 +138,12 @@ mod x86 {
             ))
         }
         #[inline(always)]
-        unsafe fn load_columns(v: &[f64], at: usize, stride: usize) -> [Self; 8] {
+        unsafe fn load_rows(v: &[f64], starts: &[usize; 8], chunk: usize) -> [Self; 8] {
             // No closures here: one not inlined would run the intrinsics as calls.
             let mut row = [_mm512_setzero_pd(); 8];
-            for (l, row) in row.iter_mut().enumerate() {
-                *row = _mm512_loadu_pd(v[at + l * stride..at + l * stride + 8].as_ptr());
+            for (row, &start) in row.iter_mut().zip(starts) {
+                let at = start + chunk;
+                *row = _mm512_loadu_pd(v[at..at + 8].as_ptr());
             }
             // Pairs of rows interleaved, then 128-bit lanes picked twice (an 8 × 8 transpose).
             let (t0, t1) = (
@@ -212,6 +220,10 @@ mod x86 {
         #[inline(always)]
         unsafe fn neg_mul_add(self, c: Self, x: Self) -> Self {
             F64x8(_mm512_fnmadd_pd(c.0, x.0, self.0))
+        }
+        #[inline(always)]
+        unsafe fn swap_halves(self) -> Self {
+            F64x8(_mm512_shuffle_f64x2::<0b01_00_11_10>(self.0, self.0))
         }
     }
 }

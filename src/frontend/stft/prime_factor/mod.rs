@@ -13,7 +13,9 @@
 //! - every stage but the last runs in place, its lanes along the contiguous inner axes (whole
 //!   vectors, thanks to the padding);
 //! - the last stage (the innermost axis) transposes eight lines into the lanes in registers and
-//!   scatters its outputs straight to their bins (the output permutation is a scatter anyway).
+//!   scatters its outputs straight to their bins (the output permutation is a scatter anyway);
+//!   for a pair of real frames on AVX-512 it takes each line with its mirror line and writes
+//!   the two frames' powers instead ([`pair_powers`]).
 //!
 //! Factors up to 13 ([`FACTORS`]) hold a line in registers ([`stages`]); larger ones, primes
 //! above 13 (rustfft's slow lengths), run from memory ([`wide`]): by the direct sum, or by
@@ -28,12 +30,14 @@
 use rustfft::num_complex::Complex;
 
 mod lanes;
+mod pair_powers;
 mod rader;
 mod stages;
 mod wide;
 
 use crate::frontend::simd::Isa;
 use lanes::Lanes;
+use pair_powers::PairPowerPlan;
 use wide::WideScratch;
 
 /// The factors (prime powers) a stage holds in registers ([`stages`]).
@@ -91,6 +95,8 @@ pub(super) struct PrimeFactorFft {
     position_of: Vec<u32>,
     /// Last stage: for its line L and bin k, at `L · r_{S−1} + k`, the output index.
     scatter: Vec<u32>,
+    /// A frame pair's powers from the last stage ([`pair_powers`]; a register factor last).
+    pair_powers: Option<PairPowerPlan>,
 }
 
 /// The input of a transform: one or two real frames, windowed (zero beyond the frames: the
@@ -182,12 +188,17 @@ impl PrimeFactorFft {
             let p: usize = (0..axes).map(|a| k % factors[a] * strides[a]).sum();
             scatter[p / pad * last + p % pad] = k as u32;
         }
+        let pair_powers = match FACTORS.contains(&last) {
+            true => PairPowerPlan::new(n, last, n / last, &scatter),
+            false => None,
+        };
         Some(PrimeFactorFft {
             n,
             positions,
             stages,
             position_of,
             scatter,
+            pair_powers,
         })
     }
 
@@ -223,6 +234,48 @@ impl PrimeFactorFft {
         self.run_stages(isa, work, spectrum);
     }
 
+    /// `power_a`, `power_b` (N/2 + 1 bins each) = the power spectra of the two windowed frames
+    /// of `input` (`b` given), as [`super::kernels::unpack_pair_powers`] gives them from
+    /// [`PrimeFactorFft::transform`]'s spectrum, bit for bit: on AVX-512 straight from the last
+    /// stage ([`pair_powers`]), elsewhere by those two steps (`spectrum` then holds the DFT).
+    pub(super) fn pair_powers(
+        &self,
+        isa: Isa,
+        input: &FramePair<'_>,
+        work: &mut SplitBuffer,
+        spectrum: &mut Vec<Complex<f64>>,
+        (power_a, power_b): (&mut [f64], &mut [f64]),
+    ) {
+        let bins = self.n / 2 + 1;
+        let (power_a, power_b) = (&mut power_a[..bins], &mut power_b[..bins]);
+        match (isa, &self.pair_powers, input.b) {
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx512, Some(plan), Some(_)) => {
+                self.fit(work, spectrum);
+                permute_windowed(&self.position_of, input, &mut work.re, &mut work.im);
+                // SAFETY: `Isa::detect` found AVX-512F on this CPU.
+                unsafe { self.pair_powers_avx512(work, plan, power_a, power_b) }
+            }
+            _ => {
+                self.transform(isa, input, work, spectrum);
+                super::kernels::unpack_pair_powers(isa, spectrum, power_a, power_b);
+            }
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn pair_powers_avx512(
+        &self,
+        work: &mut SplitBuffer,
+        plan: &PairPowerPlan,
+        power_a: &mut [f64],
+        power_b: &mut [f64],
+    ) {
+        let out = Output::PairPowers(plan, power_a, power_b);
+        self.stages::<lanes::F64x8>(work, out)
+    }
+
     /// `spectrum` (resized to N) = the DFT of z_m = x_{2m} w_{2m} + i x_{2m+1} w_{2m+1}, zero
     /// past the shorter of `x` and `window`: the complex FFT of half the length that an even
     /// real transform of 2N points is made of (see [`super::transform`]).
@@ -252,19 +305,19 @@ impl PrimeFactorFft {
             // SAFETY: `Isa::detect` found AVX-512F on this CPU.
             Isa::Avx512 => unsafe { self.transform_avx512(work, spectrum) },
             // SAFETY: `f64` lanes need no instruction set beyond the baseline.
-            _ => unsafe { self.stages::<f64>(work, spectrum) },
+            _ => unsafe { self.stages::<f64>(work, Output::Spectrum(spectrum)) },
         }
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma")]
     unsafe fn transform_avx512(&self, work: &mut SplitBuffer, spectrum: &mut [Complex<f64>]) {
-        self.stages::<lanes::F64x8>(work, spectrum)
+        self.stages::<lanes::F64x8>(work, Output::Spectrum(spectrum))
     }
 
     /// The stages in `V`'s lanes (inlined into each instruction set's copy).
     #[inline(always)]
-    unsafe fn stages<V: Lanes>(&self, work: &mut SplitBuffer, spectrum: &mut [Complex<f64>]) {
+    unsafe fn stages<V: Lanes>(&self, work: &mut SplitBuffer, output: Output<'_>) {
         let SplitBuffer {
             re,
             im,
@@ -288,8 +341,29 @@ impl PrimeFactorFft {
         for stage in others {
             by_factor!(stage, in_place(re, im));
         }
-        by_factor!(last, last(re, im, &self.scatter, spectrum));
+        match output {
+            Output::Spectrum(spectrum) => by_factor!(last, last(re, im, &self.scatter, spectrum)),
+            Output::PairPowers(plan, a, b) => {
+                let v = (&re[..], &im[..]);
+                match last.r {
+                    3 => pair_powers::last::<V, 3, 1>(last, v, plan, a, b),
+                    5 => pair_powers::last::<V, 5, 2>(last, v, plan, a, b),
+                    7 => pair_powers::last::<V, 7, 3>(last, v, plan, a, b),
+                    9 => pair_powers::last::<V, 9, 4>(last, v, plan, a, b),
+                    11 => pair_powers::last::<V, 11, 5>(last, v, plan, a, b),
+                    13 => pair_powers::last::<V, 13, 6>(last, v, plan, a, b),
+                    // Planned for the register factors only.
+                    _ => unreachable!("pair powers after a wide last stage"),
+                }
+            }
+        }
     }
+}
+
+/// What the last stage makes: the spectrum, or a frame pair's two power spectra.
+enum Output<'a> {
+    Spectrum(&'a mut [Complex<f64>]),
+    PairPowers(&'a PairPowerPlan, &'a mut [f64], &'a mut [f64]),
 }
 
 /// The windowed frames, value j to `re[position_of[j]]`, `im[position_of[j]]` (zero at or
@@ -412,143 +486,4 @@ impl Stage {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The oracle: the DFT by its definition, angles reduced exactly (jk mod N; the N roots of
-    /// unity tabulated once).
-    fn naive_dft(z: &[Complex<f64>]) -> Vec<Complex<f64>> {
-        let n = z.len();
-        let roots: Vec<Complex<f64>> = (0..n)
-            .map(|m| {
-                let angle = -2.0 * std::f64::consts::PI * m as f64 / n as f64;
-                Complex::new(angle.cos(), angle.sin())
-            })
-            .collect();
-        (0..n)
-            .map(|k| {
-                z.iter()
-                    .enumerate()
-                    .fold(Complex::new(0.0, 0.0), |acc, (j, &v)| {
-                        acc + v * roots[(j * k) % n]
-                    })
-            })
-            .collect()
-    }
-
-    /// Every planned length against the definition on every instruction set of this CPU, to
-    /// 1e-13 of the spectrum's largest bin: two to four factors, every factor size, last
-    /// steps of one to eight lines, frames shorter than N (zero padding), one frame or two.
-    #[test]
-    fn transforms_equal_the_dft_by_definition() {
-        let lengths = [
-            15,
-            21,
-            35,
-            45,
-            63,
-            99,
-            117,
-            143,
-            315,
-            429,
-            585,
-            819,
-            1001,
-            1155,
-            5 * 7 * 11,
-            // Wide factors (primes above 13): first, last and middle axes, with small ones
-            // and each other, tails of every K_BLOCK remainder (H = 8 … 14, 56,
-            // 128), the 200 ms windows at 16384 Hz (29 · 113) and 65536 Hz (3 · 17 · 257);
-            // for Rader's, p − 1 = 2 · 4 · 5, 4 · 13, 2 · 4 · 4 · 3 and 4 · 4 · 4 · 3 too.
-            3 * 41,
-            5 * 53,
-            3 * 97,
-            5 * 193,
-            3 * 17,
-            17 * 19,
-            5 * 23,
-            3 * 5 * 29,
-            9 * 31,
-            5 * 17 * 19,
-            17 * 29,
-            29 * 113,
-            3 * 17 * 257,
-        ];
-        // Each wide prime by the direct sum, and by Rader's wherever it applies.
-        let plans = [usize::MAX, 0].iter().flat_map(|&rader_min| {
-            lengths.iter().map(move |&n| {
-                PrimeFactorFft::with_rader_from(n, rader_min)
-                    .unwrap_or_else(|| panic!("{n} planned"))
-            })
-        });
-        let plans: Vec<PrimeFactorFft> = plans.collect();
-        for isa in Isa::available() {
-            for plan in &plans {
-                let n = plan.n;
-                let len = n - n / 5;
-                let a: Vec<f64> = (0..len)
-                    .map(|j| (0.37 * j as f64).sin() + ((j * 7919) % 101) as f64 * 1e-2)
-                    .collect();
-                let b: Vec<f64> = (0..len).map(|j| (0.11 * j as f64).cos() - 0.3).collect();
-                let window: Vec<f64> = (0..len).map(|j| 1.0 + (j % 3) as f64).collect();
-                for two in [true, false] {
-                    let input = FramePair {
-                        a: &a,
-                        b: two.then_some(&b[..]),
-                        window: &window,
-                    };
-                    let z: Vec<Complex<f64>> = (0..n)
-                        .map(|j| match j < len {
-                            true => {
-                                Complex::new(a[j] * window[j], b[j] * window[j] * f64::from(two))
-                            }
-                            false => Complex::new(0.0, 0.0),
-                        })
-                        .collect();
-                    let mut got = Vec::new();
-                    plan.transform(isa, &input, &mut SplitBuffer::default(), &mut got);
-                    let expected = naive_dft(&z);
-                    let scale = expected.iter().fold(0.0f64, |m, c| m.max(c.norm()));
-                    assert_eq!(got.len(), n);
-                    for (k, (g, e)) in got.iter().zip(&expected).enumerate() {
-                        assert!(
-                            (g - e).norm() <= 1e-13 * scale,
-                            "{isa:?} N {n} two {two} bin {k}: {g} vs {e}"
-                        );
-                    }
-                }
-            }
-        }
-    }
-
-    /// Lengths the lane kernels cannot take are left to rustfft: even ones, single prime
-    /// powers, powers of small primes beyond the register kernels' (rustfft's own are fast),
-    /// and factors past the wide stages' limit.
-    #[test]
-    fn only_odd_products_of_coprime_factors_the_stages_take_are_planned() {
-        for n in [
-            1,
-            2,
-            9,
-            13,
-            25,
-            27,
-            113,
-            25 * 3,
-            49 * 3,
-            200,
-            201 * 2,
-            818,
-            820,
-            3 * 263,
-            17 * 263,
-        ] {
-            assert!(PrimeFactorFft::new(n).is_none(), "{n}");
-        }
-        assert_eq!(prime_powers(819), vec![9, 7, 13]);
-        for n in [819, 3 * 17, 3 * 31, 201, 29 * 113, 3 * 17 * 257] {
-            assert_eq!(PrimeFactorFft::new(n).map(|p| p.n), Some(n));
-        }
-    }
-}
+mod tests;

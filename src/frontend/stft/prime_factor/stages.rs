@@ -8,14 +8,15 @@ use super::lanes::Lanes;
 use super::{Stage, PAD};
 
 /// R values of a vector of lines, split into real and imaginary parts.
-struct Line<V, const R: usize> {
-    re: [V; R],
-    im: [V; R],
+pub(super) struct Line<V, const R: usize> {
+    pub(super) re: [V; R],
+    pub(super) im: [V; R],
 }
 
 impl<V: Lanes, const R: usize> Line<V, R> {
+    /// All values zero.
     #[inline(always)]
-    unsafe fn zero() -> Self {
+    pub(super) unsafe fn zero() -> Self {
         let zero = V::splat(0.0);
         Line {
             re: [zero; R],
@@ -86,10 +87,12 @@ pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
         };
         let mut x = Line::<V, R>::zero();
         if lanes == V::WIDTH {
+            let starts: [usize; 8] = std::array::from_fn(|l| (start + l) * pad);
             for chunk in (0..R).step_by(8) {
-                let at = start * pad + chunk;
-                let (cols_re, cols_im) =
-                    (V::load_columns(re, at, pad), V::load_columns(im, at, pad));
+                let (cols_re, cols_im) = (
+                    V::load_rows(re, &starts, chunk),
+                    V::load_rows(im, &starts, chunk),
+                );
                 let end = R.min(chunk + 8);
                 x.re[chunk..end].copy_from_slice(&cols_re[..end - chunk]);
                 x.im[chunk..end].copy_from_slice(&cols_im[..end - chunk]);
@@ -115,7 +118,7 @@ pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
 /// x₀ + Σ_{j=1}^{H} (x_j + x_{R−j}) cos θ − i (x_j − x_{R−j}) sin θ with θ = 2π jk / R,
 /// H = (R − 1)/2.
 #[inline(always)]
-unsafe fn dft<V: Lanes, const R: usize, const H: usize>(
+pub(super) unsafe fn dft<V: Lanes, const R: usize, const H: usize>(
     x: &Line<V, R>,
     stage: &Stage,
 ) -> Line<V, R> {

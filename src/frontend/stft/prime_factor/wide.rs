@@ -115,10 +115,12 @@ pub(super) unsafe fn last<V: Lanes>(
         let lanes = w.min(lines - start);
         // Value j of every lane's line into vector j (real) and r + j (imaginary).
         if lanes == w && w == PAD {
+            let starts: [usize; PAD] = std::array::from_fn(|l| (start + l) * pad);
             for chunk in (0..r).step_by(PAD) {
-                let at = start * pad + chunk;
-                let (cols_re, cols_im) =
-                    (V::load_columns(re, at, pad), V::load_columns(im, at, pad));
+                let (cols_re, cols_im) = (
+                    V::load_rows(re, &starts, chunk),
+                    V::load_rows(im, &starts, chunk),
+                );
                 for i in 0..PAD.min(r - chunk) {
                     cols_re[i].store(columns, (chunk + i) * w);
                     cols_im[i].store(columns, (r + chunk + i) * w);

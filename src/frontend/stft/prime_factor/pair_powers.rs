@@ -1,0 +1,142 @@
+//! A frame pair's two power spectra straight from the last stage, without the spectrum.
+//!
+//! Two real frames a, b go through one complex transform as z = a + i b; their powers are
+//! |A_k|² = |Z_k + conj Z_{N−k}|² / 4 and |B_k|² = |Z_k − conj Z_{N−k}|² / 4, so every bin needs
+//! its mirror N − k. Scattering all N outputs of the last stage to their bins, then reading
+//! them back in mirrored pairs ([`super::super::kernels::unpack_pair_powers`]), moved each
+//! value twice out of order: a third of an 819-point transform's time.
+//!
+//! In the prime-factor layout the mirror is close at hand. Output k of line L of the last
+//! stage (L the indices along the other axes) is bin k' with k' ≡ K_a (mod r_a); its mirror
+//! N − k' has every index negated: output (R − k) mod R of the line −L. So the lanes take
+//! four lines in their lower half and the four lines −L in their upper half; after the
+//! R-point DFTs, output k of one half meets output R − k of the other half in the same lane
+//! once the halves of that vector are swapped. Outputs 0 … (R − 1)/2 then give every pair of
+//! those lines, and the two powers go straight to their bin (the lower of k', N − k').
+//!
+//! The powers are the same IEEE operations in the same order as the unpacking's, none fused,
+//! so the same bits: which of the two bins is "k" does not matter (x + y and (x − y)² are
+//! symmetric in IEEE arithmetic).
+
+use super::lanes::Lanes;
+use super::stages::{dft, Line};
+use super::{Stage, PAD};
+
+/// Lanes per half vector: the lines and, in the other half, their mirror lines.
+const HALF: usize = PAD / 2;
+
+/// Where the last stage's lines go in the lanes, and where its powers go.
+#[derive(Debug)]
+pub(super) struct PairPowerPlan {
+    /// Per vector, its eight lines: lanes 0–3 lines L, lanes 4–7 the lines −L.
+    lines: Vec<u32>,
+    /// Per vector and output k = 0 … (R − 1)/2, per lane: the bin (≤ N/2) of the pair.
+    bins: Vec<u32>,
+}
+
+impl PairPowerPlan {
+    /// The plan for a last stage of `r` points over `lines` lines whose output k of line L
+    /// is bin `scatter[L · r + k]` of an `n`-point transform; `None` where the mirrors do not
+    /// pair as described (they always should: checked, not assumed).
+    pub(super) fn new(n: usize, r: usize, lines: usize, scatter: &[u32]) -> Option<PairPowerPlan> {
+        if scatter.len() != n || lines * r != n || r.is_multiple_of(2) {
+            return None;
+        }
+        let h = (r - 1) / 2;
+        let mut line_of_bin = vec![0u32; n];
+        for (at, &bin) in scatter.iter().enumerate() {
+            line_of_bin[bin as usize] = (at / r) as u32;
+        }
+        let bin = |line: usize, k: usize| scatter[line * r + k] as usize;
+        let mirror = |line: usize| line_of_bin[(n - bin(line, 0)) % n] as usize;
+        let mut pairs = Vec::new();
+        for line in 0..lines {
+            let other = mirror(line);
+            let mirrored = (0..r).all(|k| (bin(line, k) + bin(other, (r - k) % r)) % n == 0);
+            if !mirrored {
+                return None;
+            }
+            if line <= other {
+                pairs.push((line, other));
+            }
+        }
+        let vectors = pairs.len().div_ceil(HALF);
+        let (mut lanes, mut bins) = (Vec::new(), Vec::new());
+        let mut covered = vec![false; n / 2 + 1];
+        for group in 0..vectors {
+            // The last vector repeats its first pair in the lanes left over: the same powers to
+            // the same bins twice.
+            let pick = |l: usize| pairs[(group * HALF + l).min(pairs.len() - 1)];
+            let group_lines: Vec<usize> = (0..PAD)
+                .map(|l| match l < HALF {
+                    true => pick(l).0,
+                    false => pick(l - HALF).1,
+                })
+                .collect();
+            lanes.extend(group_lines.iter().map(|&line| line as u32));
+            for k in 0..=h {
+                for &line in &group_lines {
+                    let b = bin(line, k);
+                    let low = b.min(n - b) % n;
+                    covered[low] = true;
+                    bins.push(low as u32);
+                }
+            }
+        }
+        covered
+            .iter()
+            .all(|&c| c)
+            .then_some(PairPowerPlan { lines: lanes, bins })
+    }
+}
+
+/// The last stage of a frame pair's transform (innermost axis, R points, the array as the
+/// other stages left it), straight to the powers of both frames: `power_a[k]`, `power_b[k]`
+/// for k = 0 … N/2 (as [`super::super::kernels::unpack_pair_powers`] of the spectrum).
+/// `V` must have [`PAD`] lanes.
+#[inline(always)]
+pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
+    stage: &Stage,
+    (re, im): (&[f64], &[f64]),
+    plan: &PairPowerPlan,
+    power_a: &mut [f64],
+    power_b: &mut [f64],
+) {
+    debug_assert_eq!(V::WIDTH, PAD);
+    let pad = R.next_multiple_of(PAD);
+    let quarter = V::splat(0.25);
+    for (lines, bins) in plan
+        .lines
+        .chunks_exact(PAD)
+        .zip(plan.bins.chunks_exact(PAD * (H + 1)))
+    {
+        let mut starts = [0usize; PAD];
+        for (start, &line) in starts.iter_mut().zip(lines) {
+            *start = line as usize * pad;
+        }
+        let mut x = Line::<V, R>::zero();
+        for chunk in (0..R).step_by(PAD) {
+            let (cols_re, cols_im) = (
+                V::load_rows(re, &starts, chunk),
+                V::load_rows(im, &starts, chunk),
+            );
+            let end = R.min(chunk + PAD);
+            x.re[chunk..end].copy_from_slice(&cols_re[..end - chunk]);
+            x.im[chunk..end].copy_from_slice(&cols_im[..end - chunk]);
+        }
+        let y = dft::<V, R, H>(&x, stage);
+        for (k, bins) in bins.chunks_exact(PAD).enumerate() {
+            let mirror = (R - k) % R;
+            let (zk_re, zk_im) = (y.re[k], y.im[k]);
+            let (zn_re, zn_im) = (y.re[mirror].swap_halves(), y.im[mirror].swap_halves());
+            let (s_re, s_im) = (zk_re.add(zn_re), zk_im.sub(zn_im));
+            let (d_re, d_im) = (zk_re.sub(zn_re), zk_im.add(zn_im));
+            let pa = quarter.mul(s_re.mul(s_re).add(s_im.mul(s_im))).to_array();
+            let pb = quarter.mul(d_re.mul(d_re).add(d_im.mul(d_im))).to_array();
+            for (l, &bin) in bins.iter().enumerate() {
+                power_a[bin as usize] = pa[l];
+                power_b[bin as usize] = pb[l];
+            }
+        }
+    }
+}
