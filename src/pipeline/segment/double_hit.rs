@@ -139,6 +139,7 @@ pub fn second_impact(pre_roll: &[f64], first: &[f64], sample_rate_hz: f64) -> Op
     let mut kept = all.clone();
     let mut residual = Vec::new();
     let mut sigma = 0.0;
+    let mut dropped = Vec::new();
     for fit in 0..ROBUST_FITS {
         let coef = kept.solve()?;
         residual = predict_residual(&z, &coef);
@@ -149,10 +150,12 @@ pub fn second_impact(pre_roll: &[f64], first: &[f64], sample_rate_hz: f64) -> Op
         let outliers: Vec<usize> = (fit_from..z.len())
             .filter(|&t| residual[t - p].abs() > OUTLIER_SIGMA * sigma)
             .collect();
-        if z.len() - fit_from - outliers.len() < MIN_FIT_SAMPLES {
+        // The same rows as the last fit's would give the same fit again.
+        if outliers == dropped || z.len() - fit_from - outliers.len() < MIN_FIT_SAMPLES {
             break;
         }
         kept = all.without(&z, &outliers);
+        dropped = outliers;
     }
     // residual[i] belongs to z[i + p]. The first impact: every sample up to one predictor length
     // after the onset.
