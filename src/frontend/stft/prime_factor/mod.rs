@@ -95,7 +95,7 @@ pub(super) struct PrimeFactorFft {
     position_of: Vec<u32>,
     /// Last stage: for its line L and bin k, at `L · r_{S−1} + k`, the output index.
     scatter: Vec<u32>,
-    /// A frame pair's powers from the last stage ([`pair_powers`]; a register factor last).
+    /// A frame pair's powers from the last stage ([`pair_powers`]).
     pair_powers: Option<PairPowerPlan>,
 }
 
@@ -188,10 +188,7 @@ impl PrimeFactorFft {
             let p: usize = (0..axes).map(|a| k % factors[a] * strides[a]).sum();
             scatter[p / pad * last + p % pad] = k as u32;
         }
-        let pair_powers = match FACTORS.contains(&last) {
-            true => PairPowerPlan::new(n, last, n / last, &scatter),
-            false => None,
-        };
+        let pair_powers = PairPowerPlan::new(n, last, n / last, &scatter);
         Some(PrimeFactorFft {
             n,
             positions,
@@ -352,8 +349,7 @@ impl PrimeFactorFft {
                     9 => pair_powers::last::<V, 9, 4>(last, v, plan, a, b),
                     11 => pair_powers::last::<V, 11, 5>(last, v, plan, a, b),
                     13 => pair_powers::last::<V, 13, 6>(last, v, plan, a, b),
-                    // Planned for the register factors only.
-                    _ => unreachable!("pair powers after a wide last stage"),
+                    _ => wide::last_pair_powers::<V>(last, v, plan, (a, b), scratch),
                 }
             }
         }

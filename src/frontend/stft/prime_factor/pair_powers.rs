@@ -20,6 +20,7 @@
 
 use super::lanes::Lanes;
 use super::stages::{dft, Line};
+use super::wide::LineValues;
 use super::{Stage, PAD};
 
 /// Lanes per half vector: the lines and, in the other half, their mirror lines.
@@ -90,6 +91,17 @@ impl PairPowerPlan {
     }
 }
 
+impl PairPowerPlan {
+    /// Per vector: its eight lines (lanes 0–3 lines L, lanes 4–7 the lines −L) and, per
+    /// output k = 0 … (R − 1)/2 and lane, the bin of the pair.
+    pub(super) fn vectors(&self, r: usize) -> impl Iterator<Item = (&[u32], &[u32])> {
+        let per_vector = PAD * ((r - 1) / 2 + 1);
+        self.lines
+            .chunks_exact(PAD)
+            .zip(self.bins.chunks_exact(per_vector))
+    }
+}
+
 /// The last stage of a frame pair's transform (innermost axis, R points, the array as the
 /// other stages left it), straight to the powers of both frames: `power_a[k]`, `power_b[k]`
 /// for k = 0 … N/2 (as [`super::super::kernels::unpack_pair_powers`] of the spectrum).
@@ -104,16 +116,8 @@ pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
 ) {
     debug_assert_eq!(V::WIDTH, PAD);
     let pad = R.next_multiple_of(PAD);
-    let quarter = V::splat(0.25);
-    for (lines, bins) in plan
-        .lines
-        .chunks_exact(PAD)
-        .zip(plan.bins.chunks_exact(PAD * (H + 1)))
-    {
-        let mut starts = [0usize; PAD];
-        for (start, &line) in starts.iter_mut().zip(lines) {
-            *start = line as usize * pad;
-        }
+    for (lines, bins) in plan.vectors(R) {
+        let starts = row_starts(lines, pad);
         let mut x = Line::<V, R>::zero();
         for chunk in (0..R).step_by(PAD) {
             let (cols_re, cols_im) = (
@@ -125,18 +129,49 @@ pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
             x.im[chunk..end].copy_from_slice(&cols_im[..end - chunk]);
         }
         let y = dft::<V, R, H>(&x, stage);
-        for (k, bins) in bins.chunks_exact(PAD).enumerate() {
-            let mirror = (R - k) % R;
-            let (zk_re, zk_im) = (y.re[k], y.im[k]);
-            let (zn_re, zn_im) = (y.re[mirror].swap_halves(), y.im[mirror].swap_halves());
-            let (s_re, s_im) = (zk_re.add(zn_re), zk_im.sub(zn_im));
-            let (d_re, d_im) = (zk_re.sub(zn_re), zk_im.add(zn_im));
-            let pa = quarter.mul(s_re.mul(s_re).add(s_im.mul(s_im))).to_array();
-            let pb = quarter.mul(d_re.mul(d_re).add(d_im.mul(d_im))).to_array();
-            for (l, &bin) in bins.iter().enumerate() {
-                power_a[bin as usize] = pa[l];
-                power_b[bin as usize] = pb[l];
-            }
+        powers_to_bins::<V, _>(R, &y, bins, power_a, power_b);
+    }
+}
+
+/// Where a vector's lines start in the padded array.
+#[inline(always)]
+pub(super) fn row_starts(lines: &[u32], pad: usize) -> [usize; PAD] {
+    let mut starts = [0usize; PAD];
+    for (start, &line) in starts.iter_mut().zip(lines) {
+        *start = line as usize * pad;
+    }
+    starts
+}
+
+/// The powers of one vector's pairs to their bins: for k = 0 … (r − 1)/2, output k of each
+/// lane with output (r − k) mod r of the lane in the other half (`bins`: per k, per lane).
+#[inline(always)]
+pub(super) unsafe fn powers_to_bins<V: Lanes, Y: LineValues<V>>(
+    r: usize,
+    y: &Y,
+    bins: &[u32],
+    power_a: &mut [f64],
+    power_b: &mut [f64],
+) {
+    let quarter = V::splat(0.25);
+    for (k, bins) in bins.chunks_exact(PAD).enumerate() {
+        let (zk_re, zk_im) = y.value(k);
+        let (zn_re, zn_im) = y.value((r - k) % r);
+        let (zn_re, zn_im) = (zn_re.swap_halves(), zn_im.swap_halves());
+        let (s_re, s_im) = (zk_re.add(zn_re), zk_im.sub(zn_im));
+        let (d_re, d_im) = (zk_re.sub(zn_re), zk_im.add(zn_im));
+        let pa = quarter.mul(s_re.mul(s_re).add(s_im.mul(s_im))).to_array();
+        let pb = quarter.mul(d_re.mul(d_re).add(d_im.mul(d_im))).to_array();
+        for (l, &bin) in bins.iter().enumerate() {
+            power_a[bin as usize] = pa[l];
+            power_b[bin as usize] = pb[l];
         }
+    }
+}
+
+impl<V: Lanes, const R: usize> LineValues<V> for Line<V, R> {
+    #[inline(always)]
+    unsafe fn value(&self, j: usize) -> (V, V) {
+        (self.re[j], self.im[j])
     }
 }

@@ -13,6 +13,7 @@
 use rustfft::num_complex::Complex;
 
 use super::lanes::Lanes;
+use super::pair_powers::{powers_to_bins, row_starts, PairPowerPlan};
 use super::{Stage, PAD};
 
 /// Outputs k computed per pass over a line's sums: four accumulators each, and the four vectors
@@ -158,6 +159,55 @@ pub(super) unsafe fn last<V: Lanes>(
     }
 }
 
+/// The innermost axis of a frame pair's transform straight to the two frames' powers, as
+/// [`super::pair_powers::last`] for a wide factor: each vector of lines (with their mirror
+/// lines) is transformed as in [`last`], its bins collected in the scratch (where the lines
+/// were: read by then), then paired. `V` must have [`PAD`] lanes.
+#[inline(always)]
+pub(super) unsafe fn last_pair_powers<V: Lanes>(
+    stage: &Stage,
+    (re, im): (&[f64], &[f64]),
+    plan: &PairPowerPlan,
+    (power_a, power_b): (&mut [f64], &mut [f64]),
+    scratch: &mut WideScratch,
+) {
+    let (r, w) = (stage.r, V::WIDTH);
+    debug_assert_eq!(w, PAD);
+    let pad = r.next_multiple_of(PAD);
+    scratch.fit(r, w);
+    let WideScratch {
+        lines: columns,
+        pairs,
+    } = scratch;
+    for (lines, bins) in plan.vectors(r) {
+        let starts = row_starts(lines, pad);
+        for chunk in (0..r).step_by(PAD) {
+            let (cols_re, cols_im) = (
+                V::load_rows(re, &starts, chunk),
+                V::load_rows(im, &starts, chunk),
+            );
+            for i in 0..PAD.min(r - chunk) {
+                cols_re[i].store(columns, (chunk + i) * w);
+                cols_im[i].store(columns, (r + chunk + i) * w);
+            }
+        }
+        let values = Columns { columns, r };
+        let x0 = match &stage.rader {
+            Some(rader) => rader.load::<V, _>(&values, pairs),
+            None => pair_up::<V, _>(r, pairs, &values),
+        };
+        let mut collected = Collected {
+            columns: &mut *columns,
+            r,
+        };
+        match &stage.rader {
+            Some(rader) => rader.finish::<V, _>(x0, pairs, &mut collected),
+            None => outputs::<V, _>(stage, x0, pairs, &mut collected),
+        }
+        powers_to_bins::<V, _>(r, &Columns { columns, r }, bins, power_a, power_b);
+    }
+}
+
 /// Where a vector of lines has its values (no closures: one not inlined would run the
 /// intrinsics as calls).
 pub(super) trait LineValues<V> {
@@ -210,6 +260,21 @@ impl<V: Lanes> LineValues<V> for Columns<'_> {
             V::load(self.columns, j * w),
             V::load(self.columns, (self.r + j) * w),
         )
+    }
+}
+
+/// A vector of lines' bins kept in lanes, laid out as [`Columns`] reads them.
+struct Collected<'a> {
+    columns: &'a mut [f64],
+    r: usize,
+}
+
+impl<V: Lanes> LineBins<V> for Collected<'_> {
+    #[inline(always)]
+    unsafe fn put(&mut self, k: usize, re: V, im: V) {
+        let w = V::WIDTH;
+        re.store(self.columns, k * w);
+        im.store(self.columns, (self.r + k) * w);
     }
 }
 
