@@ -260,6 +260,7 @@ impl PrimeFactorFft {
         }
     }
 
+    /// The stages in AVX-512 lanes, the last one straight to the pair's powers.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx512f,avx2,fma")]
     unsafe fn pair_powers_avx512(

@@ -14,6 +14,23 @@ pub(super) struct Line<V, const R: usize> {
 }
 
 impl<V: Lanes, const R: usize> Line<V, R> {
+    /// The R values of the lines starting at `starts` (one per lane), transposed in
+    /// registers.
+    #[inline(always)]
+    pub(super) unsafe fn from_rows((re, im): (&[f64], &[f64]), starts: &[usize; PAD]) -> Self {
+        let mut x = Self::zero();
+        for chunk in (0..R).step_by(PAD) {
+            let (cols_re, cols_im) = (
+                V::load_rows(re, starts, chunk),
+                V::load_rows(im, starts, chunk),
+            );
+            let end = R.min(chunk + PAD);
+            x.re[chunk..end].copy_from_slice(&cols_re[..end - chunk]);
+            x.im[chunk..end].copy_from_slice(&cols_im[..end - chunk]);
+        }
+        x
+    }
+
     /// All values zero.
     #[inline(always)]
     pub(super) unsafe fn zero() -> Self {
@@ -87,16 +104,8 @@ pub(super) unsafe fn last<V: Lanes, const R: usize, const H: usize>(
         };
         let mut x = Line::<V, R>::zero();
         if lanes == V::WIDTH {
-            let starts: [usize; 8] = std::array::from_fn(|l| (start + l) * pad);
-            for chunk in (0..R).step_by(8) {
-                let (cols_re, cols_im) = (
-                    V::load_rows(re, &starts, chunk),
-                    V::load_rows(im, &starts, chunk),
-                );
-                let end = R.min(chunk + 8);
-                x.re[chunk..end].copy_from_slice(&cols_re[..end - chunk]);
-                x.im[chunk..end].copy_from_slice(&cols_im[..end - chunk]);
-            }
+            let starts: [usize; PAD] = std::array::from_fn(|l| (start + l) * pad);
+            x = Line::from_rows((re, im), &starts);
         } else {
             for j in 0..R {
                 x.re[j] = V::from_fn(|l| value(re, l, j));

@@ -23,45 +23,53 @@ fn naive_dft(z: &[Complex<f64>]) -> Vec<Complex<f64>> {
         .collect()
 }
 
+/// Lengths of the register kernels' factors only: two to four axes, every factor size, last
+/// steps of one to eight lines.
+const REGISTER_LENGTHS: [usize; 15] = [
+    15,
+    21,
+    35,
+    45,
+    63,
+    99,
+    117,
+    143,
+    315,
+    429,
+    585,
+    819,
+    1001,
+    1155,
+    5 * 7 * 11,
+];
+
 /// Every planned length against the definition on every instruction set of this CPU, to
 /// 1e-13 of the spectrum's largest bin: two to four factors, every factor size, last
 /// steps of one to eight lines, frames shorter than N (zero padding), one frame or two.
 #[test]
 fn transforms_equal_the_dft_by_definition() {
-    let lengths = [
-        15,
-        21,
-        35,
-        45,
-        63,
-        99,
-        117,
-        143,
-        315,
-        429,
-        585,
-        819,
-        1001,
-        1155,
-        5 * 7 * 11,
-        // Wide factors (primes above 13): first, last and middle axes, with small ones
-        // and each other, tails of every K_BLOCK remainder (H = 8 … 14, 56,
-        // 128), the 200 ms windows at 16384 Hz (29 · 113) and 65536 Hz (3 · 17 · 257);
-        // for Rader's, p − 1 = 2 · 4 · 5, 4 · 13, 2 · 4 · 4 · 3 and 4 · 4 · 4 · 3 too.
-        3 * 41,
-        5 * 53,
-        3 * 97,
-        5 * 193,
-        3 * 17,
-        17 * 19,
-        5 * 23,
-        3 * 5 * 29,
-        9 * 31,
-        5 * 17 * 19,
-        17 * 29,
-        29 * 113,
-        3 * 17 * 257,
-    ];
+    let lengths: Vec<usize> = REGISTER_LENGTHS
+        .into_iter()
+        .chain([
+            // Wide factors (primes above 13): first, last and middle axes, with small ones
+            // and each other, tails of every K_BLOCK remainder (H = 8 … 14, 56,
+            // 128), the 200 ms windows at 16384 Hz (29 · 113) and 65536 Hz (3 · 17 · 257);
+            // for Rader's, p − 1 = 2 · 4 · 5, 4 · 13, 2 · 4 · 4 · 3 and 4 · 4 · 4 · 3 too.
+            3 * 41,
+            5 * 53,
+            3 * 97,
+            5 * 193,
+            3 * 17,
+            17 * 19,
+            5 * 23,
+            3 * 5 * 29,
+            9 * 31,
+            5 * 17 * 19,
+            17 * 29,
+            29 * 113,
+            3 * 17 * 257,
+        ])
+        .collect();
     // Each wide prime by the direct sum, and by Rader's wherever it applies.
     let plans = [usize::MAX, 0].iter().flat_map(|&rader_min| {
         lengths.iter().map(move |&n| {
@@ -143,22 +151,7 @@ fn only_odd_products_of_coprime_factors_the_stages_take_are_planned() {
 /// shorter than N (zero padding) and frames of N.
 #[test]
 fn pair_powers_from_the_last_stage_equal_the_unpacked_spectrum_bit_for_bit() {
-    let lengths = [
-        15,
-        21,
-        35,
-        45,
-        63,
-        99,
-        117,
-        143,
-        315,
-        429,
-        585,
-        819,
-        1001,
-        1155,
-        5 * 7 * 11,
+    let lengths = REGISTER_LENGTHS.into_iter().chain([
         3 * 5 * 29,
         9 * 31,
         3 * 41,
@@ -166,7 +159,7 @@ fn pair_powers_from_the_last_stage_equal_the_unpacked_spectrum_bit_for_bit() {
         17 * 29,
         29 * 113,
         3 * 17 * 257,
-    ];
+    ]);
     for n in lengths {
         let plan = PrimeFactorFft::new(n).unwrap_or_else(|| panic!("{n} planned"));
         // The pairs must plan (else the test would compare the slow path with itself).

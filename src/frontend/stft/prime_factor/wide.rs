@@ -117,16 +117,7 @@ pub(super) unsafe fn last<V: Lanes>(
         // Value j of every lane's line into vector j (real) and r + j (imaginary).
         if lanes == w && w == PAD {
             let starts: [usize; PAD] = std::array::from_fn(|l| (start + l) * pad);
-            for chunk in (0..r).step_by(PAD) {
-                let (cols_re, cols_im) = (
-                    V::load_rows(re, &starts, chunk),
-                    V::load_rows(im, &starts, chunk),
-                );
-                for i in 0..PAD.min(r - chunk) {
-                    cols_re[i].store(columns, (chunk + i) * w);
-                    cols_im[i].store(columns, (r + chunk + i) * w);
-                }
-            }
+            rows_into_columns::<V>((re, im), &starts, r, columns);
         } else {
             for j in 0..r {
                 for l in 0..w {
@@ -180,17 +171,7 @@ pub(super) unsafe fn last_pair_powers<V: Lanes>(
         pairs,
     } = scratch;
     for (lines, bins) in plan.vectors(r) {
-        let starts = row_starts(lines, pad);
-        for chunk in (0..r).step_by(PAD) {
-            let (cols_re, cols_im) = (
-                V::load_rows(re, &starts, chunk),
-                V::load_rows(im, &starts, chunk),
-            );
-            for i in 0..PAD.min(r - chunk) {
-                cols_re[i].store(columns, (chunk + i) * w);
-                cols_im[i].store(columns, (r + chunk + i) * w);
-            }
-        }
+        rows_into_columns::<V>((re, im), &row_starts(lines, pad), r, columns);
         let values = Columns { columns, r };
         let x0 = match &stage.rader {
             Some(rader) => rader.load::<V, _>(&values, pairs),
@@ -205,6 +186,29 @@ pub(super) unsafe fn last_pair_powers<V: Lanes>(
             None => outputs::<V, _>(stage, x0, pairs, &mut collected),
         }
         powers_to_bins::<V, _>(r, &Columns { columns, r }, bins, power_a, power_b);
+    }
+}
+
+/// The `r` values of the [`PAD`] lines starting at `starts` into `columns` (value j of every
+/// line: real parts at vector j, imaginary parts at vector r + j), transposed in registers.
+/// `V` must have [`PAD`] lanes.
+#[inline(always)]
+unsafe fn rows_into_columns<V: Lanes>(
+    (re, im): (&[f64], &[f64]),
+    starts: &[usize; PAD],
+    r: usize,
+    columns: &mut [f64],
+) {
+    let w = V::WIDTH;
+    for chunk in (0..r).step_by(PAD) {
+        let (cols_re, cols_im) = (
+            V::load_rows(re, starts, chunk),
+            V::load_rows(im, starts, chunk),
+        );
+        for i in 0..PAD.min(r - chunk) {
+            cols_re[i].store(columns, (chunk + i) * w);
+            cols_im[i].store(columns, (r + chunk + i) * w);
+        }
     }
 }
 
