@@ -123,6 +123,13 @@ pub trait FrontEnd: Send {
         self.process(samples, sink)
     }
 
+    /// Samples ahead of a completed frame that [`FrontEnd::process_ahead`] needs to share its
+    /// work with the next frame (0: it does not look ahead). The pipeline reads blocks of
+    /// several times this many frames, so that most frames find it in their block.
+    fn lookahead_samples(&self) -> usize {
+        0
+    }
+
     /// Ends the current decay: emits whatever frames remain (a filter bank that needs the whole
     /// decay emits everything here).
     fn finish(&mut self, sink: &mut dyn FrameSink);

@@ -144,10 +144,14 @@ pub fn run_with(
             })
             .max(1),
     );
-    let block_frames = config.block_frames.max(1);
     // Memory, before anything proportional to the channel count is allocated: one front end
     // tells its size, the analyzers' buffers are known, and blocks are shared by the workers.
     let first = factory()?;
+    let block_frames = super::block_frames_for(config.block_frames, first.as_ref());
+    if block_frames > config.block_frames {
+        // Decoded samples are 8 bytes; no stored encoding is wider.
+        source.allow_block_bytes(block_frames.saturating_mul(n_channels * 8));
+    }
     let input_frames = source
         .expected_frames()
         .and_then(|n| usize::try_from(n).ok());

@@ -15,8 +15,8 @@ use super::mapped::MappedBytes;
 use super::{Block, SourceError};
 use crate::frontend::simd::Isa;
 
-/// Upper bound on the bytes read by one `read_block` call: 1 MiB, 4096 frames of 64 f32
-/// channels. Each channel then gets 4096 samples per block, so that the analyzer can show the
+/// Upper bound on the bytes read by one `read_block` call unless the source is allowed more
+/// ([`super::Source::allow_block_bytes`]): 1 MiB, 4096 frames of 64 f32 channels. Each channel then gets 4096 samples per block, so that the analyzer can show the
 /// STFT the samples ahead of each 1024-sample chunk it feeds (frame pairs in one transform,
 /// [`crate::frontend::FrontEnd::process_ahead`]): whole 64-channel run at 4096 Hz 12.7 → 12.3 ms
 /// (median of 30). An earlier pipeline, which copied and decoded every block on one thread,
@@ -242,6 +242,8 @@ pub(crate) struct FrameReader<R> {
     /// The input as a mapped file, and how many of its bytes were decoded: then `reader` and
     /// `read` are unused and blocks are decoded straight from the mapping.
     mapped: Option<(Arc<MappedBytes>, usize)>,
+    /// The most bytes one read returns ([`MAX_BLOCK_BYTES`] unless allowed more).
+    block_bytes: usize,
 }
 
 /// Where the whole frames of one read are: in the reader's buffer, or a range of the mapping.
@@ -320,7 +322,14 @@ impl<R: Read> FrameReader<R> {
             done: false,
             what,
             mapped: None,
+            block_bytes: MAX_BLOCK_BYTES,
         }
+    }
+
+    /// Lets one read return up to `bytes` (never less than [`MAX_BLOCK_BYTES`]; see
+    /// [`super::Source::allow_block_bytes`]).
+    pub(crate) fn allow_block_bytes(&mut self, bytes: usize) {
+        self.block_bytes = bytes.max(MAX_BLOCK_BYTES);
     }
 
     /// This reader decoding from `mapped` bytes (the same input, mapped) instead of reading.
@@ -436,9 +445,9 @@ impl<R: Read> FrameReader<R> {
             return Ok(false);
         }
         let fb = self.frame_bytes();
-        // At most MAX_BLOCK_BYTES per call (but at least one frame): memory stays bounded
+        // At most `block_bytes` per call (but at least one frame): memory stays bounded
         // whatever the caller asks; fewer frames than asked is within the contract.
-        let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
+        let cap_frames = (self.block_bytes / fb).max(1);
         if self.mapped.is_some() {
             return self.next_mapped_frames(max_frames.clamp(1, cap_frames), take);
         }

@@ -161,6 +161,15 @@ pub trait Source: Send {
     fn expected_frames(&self) -> Option<u64> {
         self.duration_frames()
     }
+
+    /// Lets one read return up to `bytes` of stored frames. The binary sources cap a read at
+    /// 1 MiB (4096 frames of 64 f32 channels), which bounds their memory; the pipeline raises
+    /// the cap when its front end looks further ahead than such a block holds
+    /// ([`crate::frontend::FrontEnd::lookahead_samples`]). Which frames are read does not
+    /// change, only how many come at a time; sources without a cap ignore it.
+    fn allow_block_bytes(&mut self, bytes: usize) {
+        let _ = bytes;
+    }
 }
 
 // Implementations. Every source keeps the same error contract: all complete frames are delivered

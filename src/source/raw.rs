@@ -199,6 +199,10 @@ impl<R: Read + Send> Source for RawSource<R> {
         Some(self.frames.read_encoded_block(max_frames, out))
     }
 
+    fn allow_block_bytes(&mut self, bytes: usize) {
+        self.frames.allow_block_bytes(bytes)
+    }
+
     /// What the caller announced, or a mapped file's size in frames (no header states it, so
     /// it is no duration).
     fn expected_frames(&self) -> Option<u64> {
@@ -401,5 +405,56 @@ mod tests {
             assert_eq!(decoded, expected, "{case}, decoded");
             assert_eq!(encoded, expected, "{case}, encoded");
         }
+    }
+
+    /// A read returns at most 1 MiB of frames unless the source is allowed more
+    /// ([`Source::allow_block_bytes`]): mapped and streamed, decoded and encoded, 64 f32
+    /// channels (256 bytes a frame) asked for 30 000 frames at a time.
+    #[test]
+    fn blocks_grow_to_the_bytes_allowed_and_no_further() {
+        let (n_ch, frames) = (64usize, 30_000usize);
+        let bytes: Vec<u8> = (0..frames * n_ch)
+            .flat_map(|i| ((i % 101) as f32).to_le_bytes())
+            .collect();
+        let path = std::env::temp_dir().join(format!("dampscope-allow-{}.f32", std::process::id()));
+        std::fs::File::create(&path)
+            .unwrap()
+            .write_all(&bytes)
+            .unwrap();
+        let mapped = || {
+            let file = std::fs::File::open(&path).unwrap();
+            RawSource::from_file(file, "x", RawFormat::F32, 65536.0, n_ch).unwrap()
+        };
+        let stream = || {
+            let cursor = std::io::Cursor::new(bytes.clone());
+            RawSource::new(cursor, "x", RawFormat::F32, 65536.0, n_ch).unwrap()
+        };
+        fn first_block(mut source: impl Source, allowed: Option<usize>, encoded: bool) -> usize {
+            if let Some(b) = allowed {
+                source.allow_block_bytes(b);
+            }
+            if encoded {
+                let mut out = crate::source::encoded::EncodedFrames::default();
+                assert!(matches!(
+                    source.read_encoded_block(30_000, &mut out),
+                    Some(Ok(true))
+                ));
+                out.frames()
+            } else {
+                let mut block = Block::default();
+                assert!(source.read_block(30_000, &mut block).unwrap());
+                block.channels[0].len()
+            }
+        }
+        for encoded in [false, true] {
+            // 1 MiB: 4096 frames; allowed 8 MiB: all 30 000 asked; a smaller allowance than
+            // the default changes nothing.
+            assert_eq!(first_block(mapped(), None, encoded), 4096);
+            assert_eq!(first_block(mapped(), Some(8 << 20), encoded), 30_000);
+            assert_eq!(first_block(mapped(), Some(1000), encoded), 4096);
+            assert_eq!(first_block(stream(), None, encoded), 4096);
+            assert_eq!(first_block(stream(), Some(8 << 20), encoded), 30_000);
+        }
+        std::fs::remove_file(&path).ok();
     }
 }

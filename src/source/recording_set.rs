@@ -398,6 +398,9 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
         ) -> Option<Result<bool, SourceError>> {
             self.inner.read_encoded_block(max_frames, out)
         }
+        fn allow_block_bytes(&mut self, bytes: usize) {
+            self.inner.allow_block_bytes(bytes)
+        }
     }
     let info = super::SignalInfo {
         sample_rate_hz: inner.info().sample_rate_hz,

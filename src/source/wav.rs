@@ -304,4 +304,8 @@ impl<R: Read + Send> Source for WavSource<R> {
     ) -> Option<Result<bool, SourceError>> {
         Some(self.frames.read_encoded_block(max_frames, out))
     }
+
+    fn allow_block_bytes(&mut self, bytes: usize) {
+        self.frames.allow_block_bytes(bytes)
+    }
 }

@@ -418,6 +418,13 @@ impl FrontEnd for StftFrontEnd {
         }
     }
 
+    fn lookahead_samples(&self) -> usize {
+        match self.transform.pairs_frames() {
+            true => self.hop,
+            false => 0,
+        }
+    }
+
     fn finish(&mut self, _sink: &mut dyn FrameSink) {
         // Only whole frames are emitted: a partial last window would bias the energy (and an
         // early frame was never completed by the input).
