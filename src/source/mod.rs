@@ -166,7 +166,8 @@ pub trait Source: Send {
     /// 1 MiB (4096 frames of 64 f32 channels), which bounds their memory; the pipeline raises
     /// the cap when its front end looks further ahead than such a block holds
     /// ([`crate::frontend::FrontEnd::lookahead_samples`]). Which frames are read does not
-    /// change, only how many come at a time; sources without a cap ignore it.
+    /// change, only how many come at a time; sources without a cap ignore it, and so do
+    /// streams (a read returns what has arrived: a pipe holds 1 MiB at most).
     fn allow_block_bytes(&mut self, bytes: usize) {
         let _ = bytes;
     }
