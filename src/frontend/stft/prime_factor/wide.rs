@@ -80,16 +80,8 @@ pub(super) unsafe fn in_place<V: Lanes>(
                 start,
                 inner,
             };
-            match &stage.rader {
-                Some(rader) => {
-                    let x0 = rader.load::<V, _>(&lines, &mut scratch.pairs);
-                    rader.finish::<V, _>(x0, &mut scratch.pairs, &mut lines);
-                }
-                None => {
-                    let x0 = pair_up::<V, _>(r, &mut scratch.pairs, &lines);
-                    outputs::<V, _>(stage, x0, &scratch.pairs, &mut lines);
-                }
-            }
+            let x0 = take_lines::<V, _>(stage, &lines, &mut scratch.pairs);
+            put_bins::<V, _>(stage, x0, &mut scratch.pairs, &mut lines);
         }
     }
 }
@@ -137,16 +129,8 @@ pub(super) unsafe fn last<V: Lanes>(
             lanes,
             r,
         };
-        match &stage.rader {
-            Some(rader) => {
-                let x0 = rader.load::<V, _>(&values, pairs);
-                rader.finish::<V, _>(x0, pairs, &mut bins);
-            }
-            None => {
-                let x0 = pair_up::<V, _>(r, pairs, &values);
-                outputs::<V, _>(stage, x0, pairs, &mut bins);
-            }
-        }
+        let x0 = take_lines::<V, _>(stage, &values, pairs);
+        put_bins::<V, _>(stage, x0, pairs, &mut bins);
     }
 }
 
@@ -173,19 +157,42 @@ pub(super) unsafe fn last_pair_powers<V: Lanes>(
     for (lines, bins) in plan.vectors(r) {
         rows_into_columns::<V>((re, im), &row_starts(lines, pad), r, columns);
         let values = Columns { columns, r };
-        let x0 = match &stage.rader {
-            Some(rader) => rader.load::<V, _>(&values, pairs),
-            None => pair_up::<V, _>(r, pairs, &values),
-        };
+        // The lines are read whole before the first bin is kept where they were.
+        let x0 = take_lines::<V, _>(stage, &values, pairs);
         let mut collected = Collected {
             columns: &mut *columns,
             r,
         };
-        match &stage.rader {
-            Some(rader) => rader.finish::<V, _>(x0, pairs, &mut collected),
-            None => outputs::<V, _>(stage, x0, pairs, &mut collected),
-        }
+        put_bins::<V, _>(stage, x0, pairs, &mut collected);
         powers_to_bins::<V, _>(r, &Columns { columns, r }, bins, power_a, power_b);
+    }
+}
+
+/// Reads a vector of lines into `pairs`: Rader's transformed convolution input, or the sums and
+/// differences of the direct sum ([`pair_up`]); returns x₀ and bin 0.
+#[inline(always)]
+unsafe fn take_lines<V: Lanes, X: LineValues<V>>(
+    stage: &Stage,
+    x: &X,
+    pairs: &mut [f64],
+) -> [(V, V); 2] {
+    match &stage.rader {
+        Some(rader) => rader.load::<V, _>(x, pairs),
+        None => pair_up::<V, _>(stage.r, pairs, x),
+    }
+}
+
+/// Every bin of the lines [`take_lines`] read, each to `out`.
+#[inline(always)]
+unsafe fn put_bins<V: Lanes, O: LineBins<V>>(
+    stage: &Stage,
+    x0: [(V, V); 2],
+    pairs: &mut [f64],
+    out: &mut O,
+) {
+    match &stage.rader {
+        Some(rader) => rader.finish::<V, _>(x0, pairs, out),
+        None => outputs::<V, _>(stage, x0, pairs, out),
     }
 }
 
