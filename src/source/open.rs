@@ -264,7 +264,7 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
         .map(str::to_ascii_lowercase);
     let source: Box<dyn Source> = match (opts.raw, ext.as_deref()) {
         (None, Some("wav")) => {
-            let wav = WavSource::new(BufReader::new(file), path)?;
+            let wav = WavSource::from_file(file, path)?;
             check_header_rate(path, &wav, opts)?;
             Box::new(wav)
         }

@@ -273,7 +273,7 @@ pub fn open_recording_set_with(
     let (what, got, source): (String, usize, Box<dyn Source>) = if wav.exists() {
         let what = wav.display().to_string();
         let f = File::open(&wav).map_err(|e| io_err(&wav, e))?;
-        let mut s = WavSource::new(BufReader::new(f), what.clone())?;
+        let mut s = WavSource::from_file(f, what.clone())?;
         if let Some(scale) = meta.scale {
             s = s.with_int_scale(scale);
         }

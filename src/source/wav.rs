@@ -230,11 +230,37 @@ pub struct WavSource<R: Read + Send> {
     codec: Codec,
 }
 
+impl WavSource<io::BufReader<std::fs::File>> {
+    /// A WAV file: its header read from `file` (which must be at the file's start), its samples
+    /// decoded straight from the page cache when the file is a regular one that can be mapped
+    /// ([`super::mapped`]), as raw files are; read as a stream otherwise. The same blocks,
+    /// flags and errors either way.
+    pub fn from_file(
+        mut file: std::fs::File,
+        what: impl Into<String>,
+    ) -> Result<Self, SourceError> {
+        let what = what.into();
+        // Unbuffered, so that the file's position is the data chunk's first byte.
+        let (header, codec) = read_header(&mut file, &what)?;
+        let mapped = super::mapped::MappedBytes::rest_of(&file);
+        let mut source = Self::with_header(io::BufReader::new(file), header, codec, what);
+        if let Some(mapped) = mapped {
+            source.frames = source.frames.decoding_from(mapped);
+        }
+        Ok(source)
+    }
+}
+
 impl<R: Read + Send> WavSource<R> {
     /// Reads the header from `reader`; `what` names the input in error messages.
     pub fn new(mut reader: R, what: impl Into<String>) -> Result<Self, SourceError> {
         let what = what.into();
         let (header, codec) = read_header(&mut reader, &what)?;
+        Ok(Self::with_header(reader, header, codec, what))
+    }
+
+    /// The source of a header already read, its samples next in `reader`.
+    fn with_header(reader: R, header: WavHeader, codec: Codec, what: String) -> Self {
         let info = SignalInfo {
             sample_rate_hz: f64::from(header.sample_rate_hz),
             channel_names: (0..header.channels).map(|k| format!("ch{k}")).collect(),
@@ -247,12 +273,12 @@ impl<R: Read + Send> WavSource<R> {
             header.data_bytes,
             what,
         );
-        Ok(Self {
+        Self {
             header,
             info,
             frames,
             codec,
-        })
+        }
     }
 
     /// Multiplies integer counts by `scale` instead of mapping them to [-1, 1) (physical units
@@ -307,5 +333,100 @@ impl<R: Read + Send> Source for WavSource<R> {
 
     fn allow_block_bytes(&mut self, bytes: usize) {
         self.frames.allow_block_bytes(bytes)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Write;
+
+    /// A WAV of `frames` frames of `channels` samples of `bytes` each (1, 2 or 4: u8, i16,
+    /// f32), the data chunk announcing `announced` bytes (its true length when `None`), then
+    /// `trailer` (a chunk after the data, or stray bytes).
+    fn wav(
+        channels: u16,
+        bytes: u16,
+        frames: usize,
+        announced: Option<u32>,
+        trailer: &[u8],
+    ) -> Vec<u8> {
+        let data: Vec<u8> = (0..frames * channels as usize)
+            .flat_map(|i| match bytes {
+                4 if i == 77 => f32::NAN.to_le_bytes().to_vec(),
+                4 => ((i % 97) as f32 * 0.01 - 0.4).to_le_bytes().to_vec(),
+                2 => (((i * 7919) % 60_000) as i32 - 30_000).to_le_bytes()[..2].to_vec(),
+                _ => vec![(i % 251) as u8],
+            })
+            .collect();
+        let format: u16 = if bytes == 4 { 3 } else { 1 };
+        let mut out = b"RIFF\0\0\0\0WAVE".to_vec();
+        out.extend_from_slice(b"LIST");
+        out.extend_from_slice(&4u32.to_le_bytes());
+        out.extend_from_slice(b"INFO");
+        out.extend_from_slice(b"fmt ");
+        out.extend_from_slice(&16u32.to_le_bytes());
+        out.extend_from_slice(&format.to_le_bytes());
+        out.extend_from_slice(&channels.to_le_bytes());
+        out.extend_from_slice(&65536u32.to_le_bytes());
+        out.extend_from_slice(&(65536 * u32::from(channels * bytes)).to_le_bytes());
+        out.extend_from_slice(&(channels * bytes).to_le_bytes());
+        out.extend_from_slice(&(8 * bytes).to_le_bytes());
+        out.extend_from_slice(b"data");
+        out.extend_from_slice(&announced.unwrap_or(data.len() as u32).to_le_bytes());
+        out.extend_from_slice(&data);
+        out.extend_from_slice(trailer);
+        out
+    }
+
+    /// Every block (values and finiteness flags), then the end or the error, as text.
+    fn drain(mut source: impl Source) -> Vec<String> {
+        let mut seen = Vec::new();
+        let mut block = Block::default();
+        loop {
+            match source.read_block(700, &mut block) {
+                Ok(true) => seen.push(format!("{:?} {:?}", block.channels, block.known_finite)),
+                Ok(false) => return seen,
+                Err(e) => {
+                    seen.push(format!("error: {e}"));
+                    return seen;
+                }
+            }
+        }
+    }
+
+    /// A WAV file decoded from its mapping gives the blocks, flags and errors of the same
+    /// bytes read as a stream: float, 16-bit and 8-bit data, a chunk before the format, a chunk
+    /// after the data, a data chunk longer than the file, one of unknown length (0) read to
+    /// the end with a partial frame there.
+    #[test]
+    fn a_mapped_wav_reads_as_the_same_bytes_streamed() {
+        let dir = std::env::temp_dir().join(format!("dampscope-wav-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let list = b"LIST\x06\0\0\0abcdef";
+        // Channels, bytes per sample, frames, announced data bytes, bytes after the data.
+        type Case<'a> = (u16, u16, usize, Option<u32>, &'a [u8]);
+        let cases: [Case<'_>; 5] = [
+            (8, 4, 3000, None, &[]),
+            (3, 2, 2001, None, list),
+            (5, 1, 999, None, &[]),
+            (4, 4, 1500, Some(4 * 4 * 2000), &[]),
+            (2, 2, 1000, Some(0), &[1, 2, 3]),
+        ];
+        for (i, (channels, bytes, frames, announced, trailer)) in cases.into_iter().enumerate() {
+            let bytes = wav(channels, bytes, frames, announced, trailer);
+            let path = dir.join(format!("{i}.wav"));
+            std::fs::File::create(&path)
+                .unwrap()
+                .write_all(&bytes)
+                .unwrap();
+            let mapped = WavSource::from_file(std::fs::File::open(&path).unwrap(), "x").unwrap();
+            assert!(mapped.frames.is_mapped(), "case {i}");
+            let streamed = WavSource::new(std::io::Cursor::new(bytes), "x").unwrap();
+            let seen = drain(mapped);
+            assert!(seen.len() > 1, "case {i}: {seen:?}");
+            assert_eq!(seen, drain(streamed), "case {i}");
+        }
+        std::fs::remove_dir_all(&dir).ok();
     }
 }
