@@ -211,12 +211,12 @@ impl<R: Read + Send> Source for RawSource<R> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use std::io::{Seek, SeekFrom, Write};
 
     /// Every block, then the end or the error, as text: what a run sees of a source.
-    fn drain(mut source: impl Source) -> Vec<String> {
+    pub(in crate::source) fn drain(mut source: impl Source) -> Vec<String> {
         let mut seen = Vec::new();
         let mut block = Block::default();
         loop {
@@ -239,7 +239,7 @@ mod tests {
     }
 
     /// [`drain`] through `read_encoded_block`, each block decoded whole as a worker would.
-    fn drain_encoded(mut source: impl Source) -> Vec<String> {
+    pub(in crate::source) fn drain_encoded(mut source: impl Source) -> Vec<String> {
         let mut seen = Vec::new();
         let mut frames = crate::source::encoded::EncodedFrames::default();
         let mut block = Block::default();

@@ -339,6 +339,7 @@ impl<R: Read + Send> Source for WavSource<R> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::source::raw::tests::{drain, drain_encoded};
     use std::io::Write;
 
     /// A WAV of `frames` frames of `channels` samples of `bytes` each (1, 2 or 4: u8, i16,
@@ -379,24 +380,8 @@ mod tests {
         out
     }
 
-    /// Every block (values and finiteness flags), then the end or the error, as text.
-    fn drain(mut source: impl Source) -> Vec<String> {
-        let mut seen = Vec::new();
-        let mut block = Block::default();
-        loop {
-            match source.read_block(700, &mut block) {
-                Ok(true) => seen.push(format!("{:?} {:?}", block.channels, block.known_finite)),
-                Ok(false) => return seen,
-                Err(e) => {
-                    seen.push(format!("error: {e}"));
-                    return seen;
-                }
-            }
-        }
-    }
-
     /// A WAV file decoded from its mapping gives the blocks, flags and errors of the same
-    /// bytes read as a stream: float, 16-bit and 8-bit data, a chunk before the format, a chunk
+    /// bytes read as a stream (also left encoded and decoded as the workers do): float, 16-bit and 8-bit data, a chunk before the format, a chunk
     /// after the data, a data chunk longer than the file, one of unknown length (0) read to
     /// the end with a partial frame there.
     #[test]
@@ -420,12 +405,13 @@ mod tests {
                 .unwrap()
                 .write_all(&bytes)
                 .unwrap();
-            let mapped = WavSource::from_file(std::fs::File::open(&path).unwrap(), "x").unwrap();
-            assert!(mapped.frames.is_mapped(), "case {i}");
-            let streamed = WavSource::new(std::io::Cursor::new(bytes), "x").unwrap();
-            let seen = drain(mapped);
+            let mapped = || WavSource::from_file(std::fs::File::open(&path).unwrap(), "x").unwrap();
+            assert!(mapped().frames.is_mapped(), "case {i}");
+            let streamed = || WavSource::new(std::io::Cursor::new(bytes.clone()), "x").unwrap();
+            let seen = drain(mapped());
             assert!(seen.len() > 1, "case {i}: {seen:?}");
-            assert_eq!(seen, drain(streamed), "case {i}");
+            assert_eq!(seen, drain(streamed()), "case {i}");
+            assert_eq!(seen, drain_encoded(mapped()), "case {i}, encoded");
         }
         std::fs::remove_dir_all(&dir).ok();
     }

@@ -47,6 +47,12 @@ pub(super) struct WideScratch {
 }
 
 impl WideScratch {
+    /// [`WideScratch::fit`], then the lines' and the pairs' memory.
+    fn fitted(&mut self, r: usize, width: usize) -> (&mut [f64], &mut [f64]) {
+        self.fit(r, width);
+        (&mut self.lines, &mut self.pairs)
+    }
+
     /// Room for lines of `r` values, `width` lanes.
     fn fit(&mut self, r: usize, width: usize) {
         let h = (r - 1) / 2;
@@ -99,11 +105,7 @@ pub(super) unsafe fn last<V: Lanes>(
 ) {
     let (r, lines, w) = (stage.r, stage.outer, V::WIDTH);
     let pad = r.next_multiple_of(PAD);
-    scratch.fit(r, w);
-    let WideScratch {
-        lines: columns,
-        pairs,
-    } = scratch;
+    let (columns, pairs) = scratch.fitted(r, w);
     for start in (0..lines).step_by(w) {
         let lanes = w.min(lines - start);
         // Value j of every lane's line into vector j (real) and r + j (imaginary).
@@ -149,11 +151,7 @@ pub(super) unsafe fn last_pair_powers<V: Lanes>(
     let (r, w) = (stage.r, V::WIDTH);
     debug_assert_eq!(w, PAD);
     let pad = r.next_multiple_of(PAD);
-    scratch.fit(r, w);
-    let WideScratch {
-        lines: columns,
-        pairs,
-    } = scratch;
+    let (columns, pairs) = scratch.fitted(r, w);
     for (lines, bins) in plan.vectors(r) {
         rows_into_columns::<V>((re, im), &row_starts(lines, pad), r, columns);
         let values = Columns { columns, r };
