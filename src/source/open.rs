@@ -172,6 +172,37 @@ fn raw_file_source<R: Read + Send + 'static>(
     raw_source(file, what, format, opts)
 }
 
+/// Standard input redirected from a WAV file (`dampscope analyze - < rec.wav`), opened as that
+/// file ([`WavSource::from_file`]: its samples decoded from the mapping); `None` for anything
+/// else — a pipe, a terminal, another format — which is then read and detected as a stream.
+/// The first bytes are looked at without reading them (`pread`), so nothing is consumed when
+/// the answer is no.
+#[cfg(unix)]
+fn stdin_wav_file(opts: &InputOptions) -> Result<Option<Box<dyn Source>>, SourceError> {
+    use std::io::Seek;
+    use std::os::fd::AsFd;
+    use std::os::unix::fs::FileExt;
+    let Ok(fd) = std::io::stdin().as_fd().try_clone_to_owned() else {
+        return Ok(None);
+    };
+    let file = File::from(fd);
+    if !file.metadata().is_ok_and(|m| m.file_type().is_file()) {
+        return Ok(None);
+    }
+    let Ok(at) = (&file).stream_position() else {
+        return Ok(None);
+    };
+    let mut magic = [0u8; 4];
+    if !matches!(file.read_at(&mut magic, at), Ok(4)) || &magic != b"RIFF" {
+        return Ok(None);
+    }
+    let wav = WavSource::from_file(file, "standard input")?;
+    check_header_rate("standard input", &wav, opts)?;
+    let source: Box<dyn Source> = Box::new(wav);
+    check_channels("standard input", source.as_ref(), opts)?;
+    Ok(Some(source))
+}
+
 /// Opens a stream whose format must be detected (or is raw per `opts`). `what` names it in
 /// errors. Generic so that tests can pass a `Cursor` instead of standard input.
 ///
@@ -227,6 +258,10 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
         if let Some(format) = opts.raw {
             return raw_file_source(std::io::stdin(), "standard input", format, opts)
                 .map(OpenedInput::plain);
+        }
+        #[cfg(unix)]
+        if let Some(wav) = stdin_wav_file(opts)? {
+            return Ok(OpenedInput::plain(wav));
         }
         return open_stream(std::io::stdin(), "standard input", opts).map(OpenedInput::plain);
     }

@@ -360,3 +360,44 @@ fn a_bad_setting_is_named_by_its_flag() {
         .expect("overlap 1.5 is refused");
     assert!(!e.to_string().contains("--"), "{e}");
 }
+
+/// A WAV redirected to standard input from a file (`analyze - < rec.wav`: opened as the file,
+/// its samples decoded from the mapping) gives the rows of the same file by path and of the same
+/// bytes through a pipe, and so it does without mapping (`DAMPSCOPE_NO_MMAP`).
+#[test]
+fn a_wav_redirected_to_standard_input_reads_as_the_file() {
+    let wav = synth("wav");
+    let path = std::env::temp_dir().join(format!("dampscope-stdin-{}.wav", std::process::id()));
+    std::fs::write(&path, &wav).unwrap();
+    let args = ["analyze", "--band", "52.5:57.5", "--format", "jsonl"];
+    let by_path = dampscope(&[&args[..], &[path.to_str().unwrap()]].concat(), b"");
+    let piped = dampscope(&[&args[..], &["-"]].concat(), &wav);
+    let redirected = |map: bool| {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_dampscope"));
+        cmd.args(args).arg("-");
+        cmd.stdin(std::fs::File::open(&path).unwrap());
+        if !map {
+            cmd.env(dampscope::source::mapped::NO_MAP_ENV, "1");
+        }
+        cmd.output().unwrap()
+    };
+    for out in [&by_path, &piped] {
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    assert!(!by_path.stdout.is_empty());
+    assert_eq!(by_path.stdout, piped.stdout);
+    for map in [true, false] {
+        let out = redirected(map);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        assert_eq!(out.stdout, by_path.stdout, "mapped: {map}");
+    }
+    std::fs::remove_file(&path).ok();
+}
