@@ -16,10 +16,11 @@ use super::{Block, SourceError};
 use crate::frontend::simd::Isa;
 
 /// Upper bound on the bytes read by one `read_block` call unless the source is allowed more
-/// ([`super::Source::allow_block_bytes`]): 1 MiB, 4096 frames of 64 f32 channels. Each channel then gets 4096 samples per block, so that the analyzer can show the
-/// STFT the samples ahead of each 1024-sample chunk it feeds (frame pairs in one transform,
-/// [`crate::frontend::FrontEnd::process_ahead`]): whole 64-channel run at 4096 Hz 12.7 → 12.3 ms
-/// (median of 30). An earlier pipeline, which copied and decoded every block on one thread,
+/// ([`super::Source::allow_block_bytes`]): 1 MiB, 4096 frames of 64 f32 channels. Each channel
+/// then gets 4096 samples per block, so that the analyzer can show the STFT the samples ahead
+/// of each 1024-sample chunk it feeds (frame pairs in one transform,
+/// [`crate::frontend::FrontEnd::process_ahead`]): whole 64-channel run at 4096 Hz 12.7 → 12.3
+/// ms (median of 30). An earlier pipeline, which copied and decoded every block on one thread,
 /// lost a tenth of a short run faulting 1 MiB blocks in; now the decoded blocks are reused per
 /// worker (+350 page faults per run, CPU unchanged: 35.0 against 35.4 ms for octave bands).
 const MAX_BLOCK_BYTES: usize = 1 << 20;
