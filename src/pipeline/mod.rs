@@ -16,6 +16,7 @@
 use std::sync::Arc;
 
 mod bands;
+mod block_pool;
 mod channel;
 mod end_scan;
 mod finishing;

@@ -9,6 +9,7 @@ use std::sync::Arc;
 
 use crossbeam_channel::{bounded, Receiver, Sender};
 
+use super::block_pool::{blocks_in_flight, queue_blocks, BlockPool};
 use super::finishing::{finish_queued, guarded, FinishJob, FinishQueue};
 use super::order::RowOrder;
 use super::schema::StageTimes;
@@ -40,9 +41,6 @@ pub struct RunOptions {
     pub plain_decay_buffers: bool,
 }
 
-/// Blocks alive at once at most: each worker's queue (4), the one it works on, the one read.
-const BLOCKS_IN_FLIGHT: f64 = 6.0;
-
 #[derive(Clone)]
 enum ToWorker {
     Block(Arc<Block>),
@@ -67,44 +65,6 @@ fn channel_shares(channels: usize, workers: usize) -> Vec<std::ops::Range<usize>
             start - len..start
         })
         .collect()
-}
-
-/// The blocks a reader hands out, each reused once every worker is done with it, so that the
-/// hot path allocates nothing once the pipeline is full (a fresh block of a 64-channel stream
-/// is megabytes of new pages to fault in).
-struct BlockPool<T> {
-    handed_out: Vec<Arc<T>>,
-}
-
-impl<T: Default> BlockPool<T> {
-    fn new() -> Self {
-        BlockPool {
-            handed_out: Vec::new(),
-        }
-    }
-
-    /// A block no worker holds any more, or a new one.
-    fn take(&mut self) -> T {
-        match self
-            .handed_out
-            .iter()
-            .position(|b| Arc::strong_count(b) == 1)
-        {
-            // Only the reader holds pool handles, so a free block stays free.
-            Some(i) => Arc::try_unwrap(self.handed_out.swap_remove(i)).unwrap_or_default(),
-            None => T::default(),
-        }
-    }
-
-    /// Remembers a block handed out, to reuse once it is free.
-    fn keep(&mut self, block: Arc<T>) {
-        self.handed_out.push(block);
-        if self.handed_out.len() > BLOCKS_IN_FLIGHT as usize {
-            // More alive than the queues can hold: forget one handle (its memory goes when the
-            // workers drop it).
-            self.handed_out.remove(0);
-        }
-    }
 }
 
 /// Runs the whole analysis of `source`, calling `on_rows` with each batch of finished rows as soon
@@ -172,7 +132,9 @@ pub fn run_with(
             history_frames,
             config,
         );
-    let blocks = BLOCKS_IN_FLIGHT * block_frames as f64 * n_channels as f64 * 8.0;
+    let queue_blocks = queue_blocks(block_frames, n_channels);
+    let in_flight = blocks_in_flight(queue_blocks);
+    let blocks = in_flight as f64 * block_frames as f64 * n_channels as f64 * 8.0;
     crate::budget::check(
         &format!("the analysis of {n_channels} channels"),
         per_channel * n_channels as f64 + blocks,
@@ -194,7 +156,7 @@ pub fn run_with(
         let (info, build_error) = (&info, &build_error);
         let all_spawned = &all_spawned;
         for range in shares {
-            let (tx, rx) = bounded::<ToWorker>(4);
+            let (tx, rx) = bounded::<ToWorker>(queue_blocks);
             worker_txs.push(tx);
             let row_tx = row_tx.clone();
             // Its decoded blocks: f64 samples of its channels, a block's frames at most.
@@ -232,8 +194,8 @@ pub fn run_with(
             let mut holds_buffers = false;
             let mut failure = None;
             let mut read_s = 0.0;
-            let mut blocks: BlockPool<Block> = BlockPool::new();
-            let mut encoded: BlockPool<EncodedFrames> = BlockPool::new();
+            let mut blocks: BlockPool<Block> = BlockPool::new(in_flight);
+            let mut encoded: BlockPool<EncodedFrames> = BlockPool::new(in_flight);
             // Left encoded while the source can (binary frames), decoded here otherwise.
             let mut defer = true;
             loop {

@@ -60,15 +60,15 @@ impl EncodedFrames {
         }
     }
 
-    /// The frames are the bytes `fill` leaves in the buffer it is given (this block's copy
-    /// buffer, whatever it held): a reader hands its own buffer over instead of copying it.
-    pub(crate) fn set_moved(&mut self, fill: impl FnOnce(&mut Vec<u8>)) {
+    /// The frames are the first bytes of the buffer `fill` is given (this block's copy buffer,
+    /// whatever it held), as many as it returns: a reader hands its own buffer over instead of
+    /// copying it, and the room after them stays for the next read.
+    pub(crate) fn set_moved(&mut self, fill: impl FnOnce(&mut Vec<u8>) -> usize) {
         if !matches!(self.bytes, EncodedBytes::Copied(..)) {
             self.bytes = EncodedBytes::Copied(Vec::new(), 0);
         }
         if let EncodedBytes::Copied(v, len) = &mut self.bytes {
-            fill(v);
-            *len = v.len();
+            *len = fill(v);
         }
     }
 

@@ -243,8 +243,8 @@ pub(crate) struct FrameReader<R> {
     /// The input as a mapped file, and how many of its bytes were decoded: then `reader` and
     /// `read` are unused and blocks are decoded straight from the mapping.
     mapped: Option<(Arc<MappedBytes>, usize)>,
-    /// The most bytes one read of the mapping returns ([`MAX_BLOCK_BYTES`] unless allowed
-    /// more; a stream's reads stay at that).
+    /// The most bytes one read returns, mapped or streamed ([`MAX_BLOCK_BYTES`] unless
+    /// allowed more).
     block_bytes: usize,
 }
 
@@ -276,18 +276,21 @@ impl BufferedFrames {
         &self.buf[..self.whole]
     }
 
-    /// Leaves the whole frames in `into` without copying them (the two buffers trade places,
-    /// `into`'s old bytes are lost) and the partial frame at the start of the reader's new
-    /// buffer, so that `whole` = 0. A 1 MiB copy per block saved.
-    fn move_whole_into(&mut self, into: &mut Vec<u8>) {
+    /// Leaves the whole frames at the start of `into` without copying them (the two buffers
+    /// trade places, `into`'s old bytes are lost) and the partial frame at the start of the
+    /// reader's new buffer, so that `whole` = 0; returns the whole frames' byte count. A block
+    /// copy saved per read, and neither buffer is shortened: the next read into either fills
+    /// initialized room instead of zeroing it again (megabytes a read at high rates).
+    fn move_whole_into(&mut self, into: &mut Vec<u8>) -> usize {
         std::mem::swap(&mut self.buf, into);
         let partial = self.have - self.whole;
         if self.buf.len() < partial {
             self.buf.resize(partial, 0);
         }
         self.buf[..partial].copy_from_slice(&into[self.whole..self.have]);
-        into.truncate(self.whole);
+        let whole = self.whole;
         (self.whole, self.have) = (0, partial);
+        whole
     }
 
     /// Moves the partial frame to the start (after the whole frames were used in place).
@@ -328,7 +331,7 @@ impl<R: Read> FrameReader<R> {
         }
     }
 
-    /// Lets one read of a mapped input return up to `bytes` (never less than
+    /// Lets one read return up to `bytes` (never less than
     /// [`MAX_BLOCK_BYTES`]; see [`super::Source::allow_block_bytes`]).
     pub(crate) fn allow_block_bytes(&mut self, bytes: usize) {
         self.block_bytes = bytes.max(MAX_BLOCK_BYTES);
@@ -449,15 +452,12 @@ impl<R: Read> FrameReader<R> {
         let fb = self.frame_bytes();
         // At most `block_bytes` per call (but at least one frame): memory stays bounded
         // whatever the caller asks; fewer frames than asked is within the contract.
+        let cap_frames = (self.block_bytes / fb).max(1);
+        let frames = max_frames.clamp(1, cap_frames);
         if self.mapped.is_some() {
-            let cap_frames = (self.block_bytes / fb).max(1);
-            return self.next_mapped_frames(max_frames.clamp(1, cap_frames), take);
+            return self.next_mapped_frames(frames, take);
         }
-        // A stream stays at MAX_BLOCK_BYTES whatever was allowed: a read returns what arrived
-        // (a pipe holds 1 MiB at most), and the buffer it reads into is zeroed up to `want`
-        // first (a 6.7 MiB block at 65536 Hz made piped input a tenth slower).
-        let cap_frames = (MAX_BLOCK_BYTES / fb).max(1);
-        let mut want = max_frames.clamp(1, cap_frames).saturating_mul(fb);
+        let mut want = frames.saturating_mul(fb);
         let read = &mut self.read;
         if let Some(n) = self.announced_bytes {
             want = want.min(read.have + (n - self.bytes_read) as usize);
@@ -465,10 +465,13 @@ impl<R: Read> FrameReader<R> {
         if read.buf.len() < want {
             read.buf.resize(want, 0);
         }
-        // Read until at least one whole frame is buffered (or `want` bytes, or the end): a live
-        // stream yields what has arrived instead of waiting for a full block.
+        // A stream's block is filled as a mapped file's is (up to `want` bytes, or the end),
+        // not cut where a read happened to return: the same blocks whatever the writer's
+        // timing, so the same frames are paired (the same bits out as from the file) and a
+        // fast writer's blocks are long enough to pair frames at all. A live stream waits
+        // for one block of signal (4096 frames, or four look-ahead spans).
         let mut eof = false;
-        while read.have < want && read.have < fb {
+        while read.have < want {
             match self.reader.read(&mut read.buf[read.have..want]) {
                 Ok(0) => {
                     eof = true;

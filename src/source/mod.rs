@@ -166,8 +166,8 @@ pub trait Source: Send {
     /// 1 MiB (4096 frames of 64 f32 channels), which bounds their memory; the pipeline raises
     /// the cap when its front end looks further ahead than such a block holds
     /// ([`crate::frontend::FrontEnd::lookahead_samples`]). Which frames are read does not
-    /// change, only how many come at a time; sources without a cap ignore it, and so do
-    /// streams (a read returns what has arrived: a pipe holds 1 MiB at most).
+    /// change, only how many come at a time (a stream's read waits for as many); sources
+    /// without a cap ignore it.
     fn allow_block_bytes(&mut self, bytes: usize) {
         let _ = bytes;
     }
@@ -175,8 +175,8 @@ pub trait Source: Send {
 
 // Implementations. Every source keeps the same error contract: all complete frames are delivered
 // before a `Truncated` or `Malformed` error (the pipeline flushes partial results), a stream
-// without a single frame is `Empty`, and a call may return fewer frames than asked (what has
-// arrived on a pipe).
+// without a single frame is `Empty`, and a call may return fewer frames than asked (the binary
+// sources do so only at the end, so that a stream's blocks are a mapped file's).
 pub mod csv;
 pub mod encoded;
 mod frames;
