@@ -104,10 +104,27 @@ pub fn main_exit_code() -> i32 {
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("dampscope: error: {}", in_flags(&format!("{e:#}")));
+            eprintln!("dampscope: error: {}", in_flags(&error_chain(&e)));
             EXIT_FAILURE
         }
     }
+}
+
+/// An error and its causes, joined by ": ", each cause left out where the text so far already
+/// ends with it (the library's errors name their cause in their own message, so the chain
+/// repeated it: "cannot read x: No such file …: No such file …").
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let cause = cause.to_string();
+        if text.is_empty() {
+            text = cause;
+        } else if !text.ends_with(&cause) {
+            text.push_str(": ");
+            text.push_str(&cause);
+        }
+    }
+    text
 }
 
 /// Library fields that the command line sets with a flag of the same name in kebab case
@@ -177,6 +194,23 @@ fn in_flags(message: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A cause is named once: a library error that ends with its source's text is not
+    /// followed by that text again; context added over it still shows every new part.
+    #[test]
+    fn an_error_chain_names_each_cause_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "no such file");
+        let source = crate::source::SourceError::Io {
+            what: "x.wav".into(),
+            source: io,
+        };
+        let e = anyhow::Error::new(source);
+        assert_eq!(error_chain(&e), "cannot read x.wav: no such file");
+        let e = e.context("analysis");
+        assert_eq!(error_chain(&e), "analysis: cannot read x.wav: no such file");
+        let plain = anyhow::anyhow!("outer").context("top");
+        assert_eq!(error_chain(&plain), "top: outer");
+    }
 
     #[test]
     fn fields_become_flags() {

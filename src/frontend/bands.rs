@@ -89,8 +89,21 @@ pub fn parse_band_range(text: &str) -> Result<Vec<Band>> {
 
 /// The default layout: the report's chapter 4 bands, 50 Hz wide, centred on 50, 100, 150, … Hz,
 /// up to 0.4 fs (at most 2 kHz).
+/// Below 187.5 Hz (0.4 fs < 75 Hz) it holds no band: an error that says so and names the
+/// choices, not the layout's internal `LO:HI:WIDTH` text.
 pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
     let top = (DEFAULT_BANDS_TOP_FRACTION_OF_FS * sample_rate_hz).min(DEFAULT_BANDS_TOP_HZ);
+    if !(top >= 75.0 && sample_rate_hz.is_finite()) {
+        return Err(Error::setting(
+            "bands",
+            format!(
+                "the default layout (50 Hz bands centred on 50, 100, … Hz up to 0.4 fs) holds \
+                 no band at {sample_rate_hz} Hz, where 0.4 fs is {top} Hz; expected a sample \
+                 rate of at least 187.5 Hz, or bands chosen with --band LO:HI, --bands \
+                 LO:HI:WIDTH, octave, third-octave or auto"
+            ),
+        ));
+    }
     parse_band_range(&format!("25:{top}:50"))
 }
 
@@ -102,6 +115,21 @@ pub const DEFAULT_BANDS_TOP_HZ: f64 = 2025.0;
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The default layout's first band (25–75 Hz) needs 0.4 fs ≥ 75 Hz; below, the error
+    /// names the rate and the choices instead of the layout's text.
+    #[test]
+    fn the_default_layout_at_low_rates_says_why_it_is_empty() {
+        assert_eq!(default_bands(187.5).unwrap().len(), 1);
+        for fs in [100.0, 187.0, 0.0, f64::NAN] {
+            let e = default_bands(fs).unwrap_err().to_string();
+            assert!(
+                e.contains("holds no band") && e.contains("--bands"),
+                "{fs}: {e}"
+            );
+            assert!(!e.contains("25:"), "{fs}: {e}");
+        }
+    }
 
     #[test]
     fn parses_bands() {
