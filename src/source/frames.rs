@@ -12,6 +12,7 @@ mod f32_avx2;
 
 use super::encoded::EncodedFrames;
 use super::mapped::MappedBytes;
+use super::pipe::STREAM_PAUSE_MS;
 use super::{Block, SourceError};
 use crate::frontend::simd::Isa;
 
@@ -246,6 +247,9 @@ pub(crate) struct FrameReader<R> {
     /// The most bytes one read returns, mapped or streamed ([`MAX_BLOCK_BYTES`] unless
     /// allowed more).
     block_bytes: usize,
+    /// The descriptor a stream arrives on, watched while a block fills: a writer that pauses
+    /// for [`STREAM_PAUSE_MS`] gets the frames it sent analysed ([`FrameReader::wake_on_pause`]).
+    pause_fd: Option<i32>,
 }
 
 /// Where the whole frames of one read are: in the reader's buffer, or a range of the mapping.
@@ -328,7 +332,23 @@ impl<R: Read> FrameReader<R> {
             what,
             mapped: None,
             block_bytes: MAX_BLOCK_BYTES,
+            pause_fd: None,
         }
+    }
+
+    /// Hands out a partly filled block when nothing more arrives on `fd` (the descriptor
+    /// `reader` reads, unbuffered) for [`STREAM_PAUSE_MS`]: a stream's blocks are filled whole
+    /// so that they are a mapped file's, but a writer that waits for rows before it sends more
+    /// must not wait forever, nor a paused recorder's last frames until it resumes.
+    pub(crate) fn wake_on_pause(&mut self, fd: i32) {
+        self.pause_fd = Some(fd);
+    }
+
+    /// Whether bytes (or the end) arrive on the watched descriptor within [`STREAM_PAUSE_MS`];
+    /// always, without one.
+    fn arrives_soon(&self) -> bool {
+        self.pause_fd
+            .is_none_or(|fd| super::pipe::arrives_within(fd, STREAM_PAUSE_MS))
     }
 
     /// Lets one read return up to `bytes` (never less than
@@ -458,20 +478,24 @@ impl<R: Read> FrameReader<R> {
             return self.next_mapped_frames(frames, take);
         }
         let mut want = frames.saturating_mul(fb);
-        let read = &mut self.read;
         if let Some(n) = self.announced_bytes {
-            want = want.min(read.have + (n - self.bytes_read) as usize);
+            want = want.min(self.read.have + (n - self.bytes_read) as usize);
         }
-        if read.buf.len() < want {
-            read.buf.resize(want, 0);
+        if self.read.buf.len() < want {
+            self.read.buf.resize(want, 0);
         }
         // A stream's block is filled as a mapped file's is (up to `want` bytes, or the end),
         // not cut where a read happened to return: the same blocks whatever the writer's
         // timing, so the same frames are paired (the same bits out as from the file) and a
         // fast writer's blocks are long enough to pair frames at all. A live stream waits
-        // for one block of signal (4096 frames, or four look-ahead spans).
+        // for one block of signal (4096 frames, or four look-ahead spans), a paused one
+        // [`STREAM_PAUSE_MS`] at most.
         let mut eof = false;
-        while read.have < want {
+        while self.read.have < want {
+            if self.read.have >= fb && !self.arrives_soon() {
+                break;
+            }
+            let read = &mut self.read;
             match self.reader.read(&mut read.buf[read.have..want]) {
                 Ok(0) => {
                     eof = true;
@@ -490,6 +514,7 @@ impl<R: Read> FrameReader<R> {
                 }
             }
         }
+        let read = &self.read;
         let whole = read.have / fb;
         let partial = read.have % fb;
         let announced_done = self.announced_bytes.is_some_and(|n| self.bytes_read == n);

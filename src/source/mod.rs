@@ -195,6 +195,7 @@ pub mod wav;
 
 pub use csv::CsvSource;
 pub use open::{open_input, open_stream, InputOptions, OpenedInput};
+pub use pipe::STREAM_PAUSE_MS;
 pub use raw::{RawFormat, RawSource};
 pub use recording_set::{
     open_recording_set, DecayKind, Excitation, RecordingMeta, RecordingSet, Sensor,

@@ -139,6 +139,7 @@ fn raw_settings(
     Ok((fs, ch))
 }
 
+#[cfg(not(unix))]
 fn raw_source<R: Read + Send + 'static>(
     reader: R,
     what: &str,
@@ -149,7 +150,7 @@ fn raw_source<R: Read + Send + 'static>(
     Ok(Box::new(RawSource::new(reader, what, format, fs, ch)?))
 }
 
-/// [`raw_source`] of a file or of standard input: decoded from the mapped file when it is a
+/// A raw source of a file or of standard input: decoded from the mapped file when it is a
 /// regular one ([`RawSource::from_file`]).
 #[cfg(unix)]
 fn raw_file_source<R: Read + Send + std::os::fd::AsFd + 'static>(
@@ -210,12 +211,31 @@ fn stdin_wav_file(opts: &InputOptions) -> Result<Option<Box<dyn Source>>, Source
 /// not a WAV, `ChannelCount` when `opts.channels` disagrees, and whatever the format's source
 /// reports for its header.
 pub fn open_stream<R: Read + Send + 'static>(
-    mut reader: R,
+    reader: R,
     what: &str,
     opts: &InputOptions,
 ) -> Result<Box<dyn Source>, SourceError> {
+    open_stream_watched(reader, what, opts, None)
+}
+
+/// [`open_stream`] of a reader that reads descriptor `pause_fd` (when known): its binary
+/// sources hand out the frames that arrived when the writer pauses
+/// ([`super::STREAM_PAUSE_MS`]) instead of waiting for a whole block.
+fn open_stream_watched<R: Read + Send + 'static>(
+    mut reader: R,
+    what: &str,
+    opts: &InputOptions,
+    pause_fd: Option<i32>,
+) -> Result<Box<dyn Source>, SourceError> {
     if let Some(format) = opts.raw {
-        return raw_source(reader, what, format, opts);
+        let (fs, ch) = raw_settings(what, format, opts)?;
+        let source = RawSource::new(reader, what, format, fs, ch)?;
+        #[cfg(unix)]
+        let source = match pause_fd {
+            Some(fd) => source.waking_on_pause(fd),
+            None => source,
+        };
+        return Ok(Box::new(source));
     }
     let mut head = Vec::with_capacity(SNIFF_BYTES);
     read_up_to(&mut reader, &mut head, SNIFF_BYTES).map_err(|e| SourceError::Io {
@@ -242,6 +262,11 @@ pub fn open_stream<R: Read + Send + 'static>(
     let source: Box<dyn Source> = if is_wav {
         let wav = WavSource::new(stream, what)?;
         check_header_rate(what, &wav, opts)?;
+        #[cfg(unix)]
+        let wav = match pause_fd {
+            Some(fd) => wav.waking_on_pause(fd),
+            None => wav,
+        };
         Box::new(wav)
     } else {
         Box::new(CsvSource::new(stream, what, opts.fs_hz)?)
@@ -263,7 +288,12 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
         if let Some(wav) = stdin_wav_file(opts)? {
             return Ok(OpenedInput::plain(wav));
         }
-        return open_stream(std::io::stdin(), "standard input", opts).map(OpenedInput::plain);
+        #[cfg(unix)]
+        let fd = Some(std::os::fd::AsRawFd::as_raw_fd(&std::io::stdin()));
+        #[cfg(not(unix))]
+        let fd = None;
+        return open_stream_watched(std::io::stdin(), "standard input", opts, fd)
+            .map(OpenedInput::plain);
     }
     let p = Path::new(path);
     if p.is_dir() {
@@ -305,7 +335,13 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
         }
         (None, Some("csv")) => Box::new(CsvSource::new(BufReader::new(file), path, opts.fs_hz)?),
         (Some(format), _) => raw_file_source(file, path, format, opts)?,
-        _ => open_stream(file, path, opts)?,
+        _ => {
+            #[cfg(unix)]
+            let fd = Some(std::os::fd::AsRawFd::as_raw_fd(&file));
+            #[cfg(not(unix))]
+            let fd = None;
+            open_stream_watched(file, path, opts, fd)?
+        }
     };
     check_channels(path, source.as_ref(), opts)?;
     Ok(OpenedInput::plain(source))

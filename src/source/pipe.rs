@@ -1,4 +1,4 @@
-//! Standard input from a pipe, read in larger gulps.
+//! Standard input from a pipe, read in larger gulps, and watched for a writer's pauses.
 //!
 //! A pipe holds 64 KiB by default: a writer such as `cat` fills it, the reader empties it, and
 //! each side sleeps while the other works — 160 round trips for a 10 MB recording, and blocks of
@@ -28,6 +28,38 @@ pub(crate) fn widen(file: &File) {
     }
     #[cfg(not(target_os = "linux"))]
     let _ = file;
+}
+
+/// How long a stream may pause, ms, before the frames it sent are handed out in a block not
+/// yet full (`FrameReader::wake_on_pause`). A writer that keeps up never waits this long
+/// between writes (a recorder writes every few ms, `cat` continuously), so its blocks are the
+/// file's; one that stops and waits for rows is answered within this.
+pub const STREAM_PAUSE_MS: i32 = 250;
+
+/// Whether bytes, the end or an error arrive on descriptor `fd` within `ms` milliseconds
+/// (`poll`; an interrupted wait is resumed). Without `poll`, always.
+pub(crate) fn arrives_within(fd: i32, ms: i32) -> bool {
+    #[cfg(unix)]
+    {
+        let mut watch = libc::pollfd {
+            fd,
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        loop {
+            // SAFETY: one pollfd, valid for the call; the caller keeps `fd` open.
+            let n = unsafe { libc::poll(&mut watch, 1, ms) };
+            if n >= 0 || std::io::Error::last_os_error().kind() != std::io::ErrorKind::Interrupted {
+                // Readable, closed (POLLHUP) or an error: the read tells which.
+                return n != 0;
+            }
+        }
+    }
+    #[cfg(not(unix))]
+    {
+        let _ = (fd, ms);
+        true
+    }
 }
 
 #[cfg(all(test, target_os = "linux"))]

@@ -111,6 +111,7 @@ impl<R: Read + Send> RawSource<R> {
     where
         R: std::os::fd::AsFd,
     {
+        use std::os::fd::AsRawFd;
         let mapped = file.as_fd().try_clone_to_owned().ok().and_then(|fd| {
             let file = std::fs::File::from(fd);
             let mapped = super::mapped::MappedBytes::rest_of(&file);
@@ -119,7 +120,21 @@ impl<R: Read + Send> RawSource<R> {
             }
             mapped
         });
-        Self::with_frames(file, mapped, what.into(), format, fs_hz, channels)
+        let streamed = mapped.is_none();
+        let fd = file.as_fd().as_raw_fd();
+        let source = Self::with_frames(file, mapped, what.into(), format, fs_hz, channels)?;
+        Ok(match streamed {
+            true => source.waking_on_pause(fd),
+            false => source,
+        })
+    }
+
+    /// This source, handing out a block not yet full when nothing arrives on `fd` (the
+    /// descriptor its reader reads) for [`super::STREAM_PAUSE_MS`].
+    #[cfg(unix)]
+    pub(crate) fn waking_on_pause(mut self, fd: i32) -> Self {
+        self.frames.wake_on_pause(fd);
+        self
     }
 
     /// This source, announcing that its input holds `frames` sample frames (an input in

@@ -243,11 +243,27 @@ impl WavSource<io::BufReader<std::fs::File>> {
         // Unbuffered, so that the file's position is the data chunk's first byte.
         let (header, codec) = read_header(&mut file, &what)?;
         let mapped = super::mapped::MappedBytes::rest_of(&file);
+        #[cfg(unix)]
+        let fd = std::os::fd::AsRawFd::as_raw_fd(&file);
         let mut source = Self::with_header(io::BufReader::new(file), header, codec, what);
-        if let Some(mapped) = mapped {
-            source.frames = source.frames.decoding_from(mapped);
+        match mapped {
+            Some(mapped) => source.frames = source.frames.decoding_from(mapped),
+            #[cfg(unix)]
+            None => source.frames.wake_on_pause(fd),
+            #[cfg(not(unix))]
+            None => {}
         }
         Ok(source)
+    }
+}
+
+impl<R: Read + Send> WavSource<R> {
+    /// This source, handing out a block not yet full when nothing arrives on `fd` (the
+    /// descriptor its reader reads) for [`super::STREAM_PAUSE_MS`].
+    #[cfg(unix)]
+    pub(crate) fn waking_on_pause(mut self, fd: i32) -> Self {
+        self.frames.wake_on_pause(fd);
+        self
     }
 }
 

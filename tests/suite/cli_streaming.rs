@@ -178,3 +178,60 @@ fn a_slow_writers_pipe_gives_the_files_rows_bit_for_bit() {
     assert_eq!(String::from_utf8(piped.stdout).unwrap(), rows);
     std::fs::remove_file(&path).ok();
 }
+
+/// A writer that sends one short decay and waits for its row before sending more gets it: a
+/// stream's block is filled whole only while bytes keep coming; after a pause of
+/// `STREAM_PAUSE_MS` the frames that arrived are analysed. 3000 frames at 4000 Hz (less than
+/// a 4096-frame block) whose decay ends after 0.5 s; the row must come while the input is still
+/// open (a reader that waited for the whole block would never give it).
+#[test]
+fn a_writer_that_waits_for_its_row_gets_it() {
+    let fs = 4000.0;
+    let bytes: Vec<u8> = (0..3000)
+        .flat_map(|i| {
+            let t = i as f64 / fs;
+            let w = 2.0 * std::f64::consts::PI * 55.0;
+            let x = (-(0.025 * w) * t).exp() * (w * t).sin();
+            (x as f32).to_le_bytes()
+        })
+        .collect();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
+        .args([
+            "analyze",
+            "-",
+            "--raw",
+            "f32",
+            "--fs",
+            "4000",
+            "--channels",
+            "1",
+        ])
+        .args(["--band", "52.5:57.5", "--max-decay-s", "0.5"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("binary runs");
+    let stdout = child.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().skip(1) {
+            if tx.send(line.unwrap()).is_err() {
+                break;
+            }
+        }
+    });
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(&bytes).unwrap();
+    stdin.flush().unwrap();
+    let started = std::time::Instant::now();
+    let row = rx.recv_timeout(std::time::Duration::from_secs(10));
+    let waited = started.elapsed();
+    drop(stdin);
+    let status = child.wait().unwrap();
+    reader.join().unwrap();
+    assert!(status.success(), "exit {status:?}");
+    let row = row.expect("no row while the input was open");
+    assert!(row.starts_with("ch0,0,"), "{row}");
+    eprintln!("row after {waited:?}");
+}
