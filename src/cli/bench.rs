@@ -42,13 +42,14 @@ pub struct BenchArgs {
     #[arg(long, default_value_t = DEFAULT_BENCH_SECONDS)]
     pub seconds: f64,
     /// Worker threads (default: one per core).
-    #[arg(long)]
+    #[arg(long, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub threads: Option<usize>,
     /// Front ends to time, comma-separated.
     #[arg(long, value_delimiter = ',', default_value = "stft,octave,goyder")]
     pub front_ends: Vec<FrontEndKind>,
     /// Timed runs per front end (the fastest counts; one more, profiled, gives the stage shares).
-    #[arg(long, default_value_t = DEFAULT_BENCH_REPEAT)]
+    #[arg(long, default_value_t = DEFAULT_BENCH_REPEAT,
+          value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(1..))]
     pub repeat: usize,
     /// Output format.
     #[arg(long, value_enum, default_value_t = BenchFormat::Table)]

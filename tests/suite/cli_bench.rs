@@ -120,3 +120,17 @@ fn threads_and_profiling_do_not_change_the_results() {
     // none, the banks' 1–2 ms frames some; the comparison above covers numbers, not only flags.
     assert!(with_number >= 3, "{with_number} of 90 bands with a T60");
 }
+
+/// Zero threads or zero timed runs is a usage error (exit 2, naming the flag), not a run
+/// with one thread or one whose table times nothing.
+#[test]
+fn zero_threads_or_runs_are_refused() {
+    for flag in ["--threads", "--repeat"] {
+        let out =
+            crate::common::TestCommand::new(["bench", "--seconds", "0.01", flag, "0"]).output();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
+        assert!(err.contains(flag), "{flag}: {err}");
+        assert!(out.stdout.is_empty(), "{flag}");
+    }
+}
