@@ -11,22 +11,25 @@ fn vm_hwm_kib(pid: u32) -> Option<u64> {
     dampscope::budget::peak_memory_kib_of(&pid.to_string())
 }
 
-#[test]
-fn long_piped_stream_gives_results_early_and_bounded_memory() {
-    let fs = 4000.0;
-    let decay_s = 2.0;
-    let decays = 600; // 20 minutes of signal, 4.8 M samples
-    let per = (fs * decay_s) as usize;
-    let one: Vec<u8> = (0..per)
+/// The sample rate of the one-channel streams, Hz.
+const FS_HZ: f64 = 4000.0;
+
+/// `frames` samples of a 55 Hz decay with a damping ratio of 0.025 at [`FS_HZ`], raw f32.
+fn decay_55_hz_f32(frames: usize) -> Vec<u8> {
+    (0..frames)
         .flat_map(|i| {
-            let t = i as f64 / fs;
+            let t = i as f64 / FS_HZ;
             let w = 2.0 * std::f64::consts::PI * 55.0;
             let x = (-(0.025 * w) * t).exp() * (w * t).sin();
             (x as f32).to_le_bytes()
         })
-        .collect();
+        .collect()
+}
 
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
+/// `dampscope analyze -` of one raw f32 channel at [`FS_HZ`], the band around 55 Hz, and
+/// `extra` arguments; standard input and output piped.
+fn analyze_one_channel(extra: &[&str]) -> std::process::Child {
+    Command::new(env!("CARGO_BIN_EXE_dampscope"))
         .args([
             "analyze",
             "-",
@@ -37,12 +40,21 @@ fn long_piped_stream_gives_results_early_and_bounded_memory() {
             "--channels",
             "1",
         ])
-        .args(["--band", "52.5:57.5", "--range", "t20"])
+        .args(["--band", "52.5:57.5"])
+        .args(extra)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+        .stderr(Stdio::null())
         .spawn()
-        .expect("binary runs");
+        .expect("binary runs")
+}
+
+#[test]
+fn long_piped_stream_gives_results_early_and_bounded_memory() {
+    let decay_s = 2.0;
+    let decays = 600; // 20 minutes of signal, 4.8 M samples
+    let one = decay_55_hz_f32((FS_HZ * decay_s) as usize);
+    let mut child = analyze_one_channel(&["--range", "t20"]);
     let pid = child.id();
     let rows = Arc::new(AtomicUsize::new(0));
     let good = Arc::new(AtomicUsize::new(0));
@@ -186,32 +198,8 @@ fn a_slow_writers_pipe_gives_the_files_rows_bit_for_bit() {
 /// open (a reader that waited for the whole block would never give it).
 #[test]
 fn a_writer_that_waits_for_its_row_gets_it() {
-    let fs = 4000.0;
-    let bytes: Vec<u8> = (0..3000)
-        .flat_map(|i| {
-            let t = i as f64 / fs;
-            let w = 2.0 * std::f64::consts::PI * 55.0;
-            let x = (-(0.025 * w) * t).exp() * (w * t).sin();
-            (x as f32).to_le_bytes()
-        })
-        .collect();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .args([
-            "analyze",
-            "-",
-            "--raw",
-            "f32",
-            "--fs",
-            "4000",
-            "--channels",
-            "1",
-        ])
-        .args(["--band", "52.5:57.5", "--max-decay-s", "0.5"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("binary runs");
+    let bytes = decay_55_hz_f32(3000);
+    let mut child = analyze_one_channel(&["--max-decay-s", "0.5"]);
     let stdout = child.stdout.take().unwrap();
     let (tx, rx) = std::sync::mpsc::channel();
     let reader = std::thread::spawn(move || {
