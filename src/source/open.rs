@@ -205,7 +205,10 @@ fn stdin_wav_file(opts: &InputOptions) -> Result<Option<Box<dyn Source>>, Source
 }
 
 /// Opens a stream whose format must be detected (or is raw per `opts`). `what` names it in
-/// errors. Generic so that tests can pass a `Cursor` instead of standard input.
+/// errors. Generic so that tests can pass a `Cursor` instead of standard input. Binary frames
+/// are read in whole blocks (the same as a mapped file's); the reader's pauses are not
+/// watched, as they are for standard input ([`super::STREAM_PAUSE_MS`]), so a writer that
+/// waits for rows before it sends more should close or keep writing.
 ///
 /// Errors: `Empty` for a stream without a byte, `UnrecognisedFormat` for binary data that is
 /// not a WAV, `ChannelCount` when `opts.channels` disagrees, and whatever the format's source
@@ -227,6 +230,8 @@ fn open_stream_watched<R: Read + Send + 'static>(
     opts: &InputOptions,
     pause_fd: Option<i32>,
 ) -> Result<Box<dyn Source>, SourceError> {
+    #[cfg(not(unix))]
+    let _ = pause_fd;
     if let Some(format) = opts.raw {
         let (fs, ch) = raw_settings(what, format, opts)?;
         let source = RawSource::new(reader, what, format, fs, ch)?;
