@@ -24,7 +24,7 @@ use super::kernels::{
     half_spectrum_powers, power_spectrum, unpack_pair_powers, window_and_zero_pad,
     window_into_pairs, window_pair,
 };
-use super::prime_factor::{FramePair, PrimeFactorFft, SplitBuffer};
+use super::prime_factor::{FramePair, HalfPowerTables, PrimeFactorFft, SplitBuffer};
 use super::tables::{shared_complex_plan, shared_half_twiddles, shared_plan, shared_prime_factor};
 use crate::frontend::simd::Isa;
 
@@ -49,6 +49,8 @@ pub(super) enum Transform {
     EvenPrimeFactor {
         half: Arc<PrimeFactorFft>,
         twiddles: Arc<[Complex<f64>]>,
+        /// The post-processing in the last stage's lanes, where the plan allows it.
+        tables: Option<Arc<HalfPowerTables>>,
     },
 }
 
@@ -58,7 +60,11 @@ impl Transform {
         if nfft.is_multiple_of(2) {
             let twiddles = shared_half_twiddles(nfft);
             match shared_prime_factor(nfft / 2) {
-                Some(half) => Transform::EvenPrimeFactor { half, twiddles },
+                Some(half) => Transform::EvenPrimeFactor {
+                    tables: half.half_power_tables(&twiddles).map(Arc::new),
+                    half,
+                    twiddles,
+                },
                 None => Transform::Even {
                     half: shared_complex_plan(nfft / 2),
                     twiddles,
@@ -102,11 +108,21 @@ impl Transform {
                 half.process_outofplace_with_scratch(half_in, spectrum, scratch);
                 half_spectrum_powers(isa, spectrum, twiddles, power);
             }
-            Transform::EvenPrimeFactor { half, twiddles } => {
+            Transform::EvenPrimeFactor {
+                half,
+                twiddles,
+                tables,
+            } => {
                 sized(&mut buffers.power, half.len() + 1, 0.0);
                 sized(&mut buffers.power_b, half.len() + 1, 0.0);
-                half.transform_interleaved(isa, (x, window), &mut buffers.split, &mut buffers.pair);
-                half_spectrum_powers(isa, &buffers.pair, twiddles, &mut buffers.power);
+                half.half_powers(
+                    isa,
+                    (x, window),
+                    (tables.as_deref(), twiddles),
+                    &mut buffers.split,
+                    &mut buffers.pair,
+                    &mut buffers.power,
+                );
             }
             Transform::PrimeFactor(plan) => {
                 prime_factor_spectrum(plan, isa, (x, None), window, buffers);
@@ -335,9 +351,12 @@ mod tests {
                 .collect();
             let expected = realfft_powers(&x, &window, nfft);
             let scale = expected.iter().fold(0.0f64, |m, &p| m.max(p));
+            let half = Arc::new(PrimeFactorFft::new(nfft / 2).expect("planned"));
+            let twiddles = shared_half_twiddles(nfft);
             let forced = Transform::EvenPrimeFactor {
-                half: Arc::new(PrimeFactorFft::new(nfft / 2).expect("planned")),
-                twiddles: shared_half_twiddles(nfft),
+                tables: half.half_power_tables(&twiddles).map(Arc::new),
+                half,
+                twiddles,
             };
             for isa in Isa::available() {
                 let mut buffers = FrameBuffers::default();

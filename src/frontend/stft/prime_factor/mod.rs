@@ -37,6 +37,7 @@ mod wide;
 
 use crate::frontend::simd::Isa;
 use lanes::Lanes;
+pub(super) use pair_powers::HalfPowerTables;
 use pair_powers::PairPowerPlan;
 use wide::WideScratch;
 
@@ -274,6 +275,60 @@ impl PrimeFactorFft {
         self.stages::<lanes::F64x8>(work, out)
     }
 
+    /// The tables that let [`PrimeFactorFft::half_powers`] take the powers of a real frame of
+    /// 2N points straight from the last stage, for post-processing `twiddles` (realfft's, halved);
+    /// `None` where the last stage is a wide one or the mirrors do not pair.
+    pub(super) fn half_power_tables(&self, twiddles: &[Complex<f64>]) -> Option<HalfPowerTables> {
+        let last = self.stages.last()?;
+        if !FACTORS.contains(&last.r) {
+            return None;
+        }
+        self.pair_powers
+            .as_ref()?
+            .half_tables(self.n, last.r, twiddles)
+    }
+
+    /// `power` (N + 1 bins) = the power spectrum of the real frame of 2N points `x · window`, as
+    /// [`PrimeFactorFft::transform_interleaved`] and [`super::kernels::half_spectrum_powers`]
+    /// give it, bit for bit: on AVX-512 with `tables` straight from the last stage (no
+    /// spectrum written and read back), elsewhere by those two steps.
+    pub(super) fn half_powers(
+        &self,
+        isa: Isa,
+        (x, window): (&[f64], &[f64]),
+        (tables, twiddles): (Option<&HalfPowerTables>, &[Complex<f64>]),
+        work: &mut SplitBuffer,
+        spectrum: &mut Vec<Complex<f64>>,
+        power: &mut [f64],
+    ) {
+        let power = &mut power[..self.n + 1];
+        match (isa, &self.pair_powers, tables) {
+            #[cfg(target_arch = "x86_64")]
+            (Isa::Avx512, Some(plan), Some(tables)) => {
+                self.fit(work, spectrum);
+                permute_interleaved(&self.position_of, (x, window), &mut work.re, &mut work.im);
+                // SAFETY: `Isa::detect` found AVX-512F on this CPU.
+                unsafe { self.half_powers_avx512(work, (plan, tables), power) }
+            }
+            _ => {
+                self.transform_interleaved(isa, (x, window), work, spectrum);
+                super::kernels::half_spectrum_powers(isa, spectrum, twiddles, power);
+            }
+        }
+    }
+
+    /// The stages in AVX-512 lanes, the last one straight to the real frame's powers.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma")]
+    unsafe fn half_powers_avx512(
+        &self,
+        work: &mut SplitBuffer,
+        (plan, tables): (&PairPowerPlan, &HalfPowerTables),
+        power: &mut [f64],
+    ) {
+        self.stages::<lanes::F64x8>(work, Output::HalfPowers(plan, tables, power))
+    }
+
     /// `spectrum` (resized to N) = the DFT of z_m = x_{2m} w_{2m} + i x_{2m+1} w_{2m+1}, zero
     /// past the shorter of `x` and `window`: the complex FFT of half the length that an even
     /// real transform of 2N points is made of (see [`super::transform`]).
@@ -353,14 +408,29 @@ impl PrimeFactorFft {
                     _ => wide::last_pair_powers::<V>(last, v, plan, (a, b), scratch),
                 }
             }
+            Output::HalfPowers(plan, tables, power) => {
+                let v = (&re[..], &im[..]);
+                let plan = (plan, tables);
+                match last.r {
+                    3 => pair_powers::last_half::<V, 3, 1>(last, v, plan, power),
+                    5 => pair_powers::last_half::<V, 5, 2>(last, v, plan, power),
+                    7 => pair_powers::last_half::<V, 7, 3>(last, v, plan, power),
+                    9 => pair_powers::last_half::<V, 9, 4>(last, v, plan, power),
+                    11 => pair_powers::last_half::<V, 11, 5>(last, v, plan, power),
+                    13 => pair_powers::last_half::<V, 13, 6>(last, v, plan, power),
+                    _ => unreachable!("half-power tables are made for register last stages"),
+                }
+            }
         }
     }
 }
 
-/// What the last stage makes: the spectrum, or a frame pair's two power spectra.
+/// What the last stage makes: the spectrum, a frame pair's two power spectra, or the power
+/// spectrum of the real frame of twice the length whose sample pairs were transformed.
 enum Output<'a> {
     Spectrum(&'a mut [Complex<f64>]),
     PairPowers(&'a PairPowerPlan, &'a mut [f64], &'a mut [f64]),
+    HalfPowers(&'a PairPowerPlan, &'a HalfPowerTables, &'a mut [f64]),
 }
 
 /// The windowed frames, value j to `re[position_of[j]]`, `im[position_of[j]]` (zero at or

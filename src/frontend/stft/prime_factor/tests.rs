@@ -206,3 +206,51 @@ fn pair_powers_from_the_last_stage_equal_the_unpacked_spectrum_bit_for_bit() {
         }
     }
 }
+
+/// A real frame of 2M points through the transform of its M sample pairs: its powers straight
+/// from the last stage ([`PrimeFactorFft::half_powers`] with tables) equal the spectrum's
+/// post-processing by [`super::super::kernels::half_spectrum_powers`] bit for bit, on every
+/// instruction set, for every register-factor length M (the tables must exist for each: else
+/// the test would compare the slow path with itself), frames of 2M samples and shorter.
+#[test]
+fn half_powers_from_the_last_stage_equal_the_post_processed_spectrum_bit_for_bit() {
+    use super::super::kernels::half_spectrum_powers;
+    use super::super::tables::shared_half_twiddles;
+    for m in REGISTER_LENGTHS {
+        let plan = PrimeFactorFft::new(m).expect("planned");
+        let twiddles = shared_half_twiddles(2 * m);
+        let tables = plan.half_power_tables(&twiddles);
+        assert!(tables.is_some(), "no half-power tables for M = {m}");
+        for frame in [2 * m, 2 * m - 1, m + 3] {
+            let x: Vec<f64> = (0..frame)
+                .map(|i| ((i * 7919 % 1013) as f64 - 500.0) * 1e-3 + (i as f64 * 0.37).sin())
+                .collect();
+            let window: Vec<f64> = (0..frame)
+                .map(|i| 0.5 - 0.5 * (i as f64 * 0.02).cos())
+                .collect();
+            for isa in Isa::available() {
+                let (mut work, mut spectrum) = (SplitBuffer::default(), Vec::new());
+                plan.transform_interleaved(isa, (&x, &window), &mut work, &mut spectrum);
+                let mut expected = vec![0.0; m + 1];
+                half_spectrum_powers(isa, &spectrum, &twiddles, &mut expected);
+                let mut got = vec![f64::NAN; m + 1];
+                let (mut work, mut spectrum) = (SplitBuffer::default(), Vec::new());
+                plan.half_powers(
+                    isa,
+                    (&x, &window),
+                    (tables.as_ref(), &twiddles),
+                    &mut work,
+                    &mut spectrum,
+                    &mut got,
+                );
+                for (k, (g, e)) in got.iter().zip(&expected).enumerate() {
+                    assert_eq!(
+                        g.to_bits(),
+                        e.to_bits(),
+                        "{isa:?} M {m} frame {frame} bin {k}: {g} vs {e}"
+                    );
+                }
+            }
+        }
+    }
+}
