@@ -277,12 +277,9 @@ impl PrimeFactorFft {
 
     /// The tables that let [`PrimeFactorFft::half_powers`] take the powers of a real frame of
     /// 2N points straight from the last stage, for post-processing `twiddles` (realfft's, halved);
-    /// `None` where the last stage is a wide one or the mirrors do not pair.
+    /// `None` where the mirrors do not pair.
     pub(super) fn half_power_tables(&self, twiddles: &[Complex<f64>]) -> Option<HalfPowerTables> {
         let last = self.stages.last()?;
-        if !FACTORS.contains(&last.r) {
-            return None;
-        }
         self.pair_powers
             .as_ref()?
             .half_tables(self.n, last.r, twiddles)
@@ -418,7 +415,7 @@ impl PrimeFactorFft {
                     9 => pair_powers::last_half::<V, 9, 4>(last, v, plan, power),
                     11 => pair_powers::last_half::<V, 11, 5>(last, v, plan, power),
                     13 => pair_powers::last_half::<V, 13, 6>(last, v, plan, power),
-                    _ => unreachable!("half-power tables are made for register last stages"),
+                    _ => wide::last_half_powers::<V>(last, v, plan, power, scratch),
                 }
             }
         }

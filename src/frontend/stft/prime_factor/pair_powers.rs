@@ -20,8 +20,9 @@
 //! An even real frame of 2M points takes the same route ([`last_half`]): its sample pairs go
 //! through the complex transform of M points, and its bins k and M − k are made from Z_k and
 //! Z_{M−k} (realfft's post-processing, twiddled), which meet in the same lanes; the tables put
-//! each pair in order and give it its twiddle ([`HalfPowerTables`]). 8192 Hz (M = 819), one
-//! 64-channel 10 s run: 18.3 → 17.0 ms.
+//! each pair in order and give it its twiddle ([`HalfPowerTables`]); wide last stages collect
+//! their lanes first ([`super::wide::last_half_powers`]). One 64-channel 10 s run: 8192 Hz
+//! (M = 819) 18.3 → 17.0 ms, 32768 Hz (M = 3277 = 29 · 113) 75.2 → 70.1 ms.
 //!
 //! The powers are the same IEEE operations in the same order as the unpacking's, none fused,
 //! so the same bits: which of the two bins is "k" does not matter (x + y and (x − y)² are
@@ -232,39 +233,45 @@ pub(super) unsafe fn last_half<V: Lanes, const R: usize, const H: usize>(
 ) {
     debug_assert_eq!(V::WIDTH, PAD);
     let pad = R.next_multiple_of(PAD);
-    let m = power.len() - 1;
-    let per_vector = PAD * ((R - 1) / 2 + 1);
     let mut zero = (0.0, 0.0);
     for (v, (lines, bins)) in plan.vectors(R).enumerate() {
         let x = Line::<V, R>::from_rows((re, im), &row_starts(lines, pad));
         let y = dft::<V, R, H>(&x, stage);
-        if v == tables.zero.0 {
-            let (z_re, z_im) = y.value(0);
-            zero = (
-                z_re.to_array()[tables.zero.1],
-                z_im.to_array()[tables.zero.1],
-            );
-        }
-        let at = v * per_vector;
-        half_powers_to_bins::<V, _>(R, &y, (bins, at), tables, power);
+        half_powers_to_bins::<V, _>(R, &y, (bins, v), tables, power, &mut zero);
     }
-    // Bins 0 and M: the sum and difference of Z_0's parts, as the post-processing makes them
-    // (the pair written for Z_0 above used a twiddle it has not).
+    zero_and_nyquist(zero, power);
+}
+
+/// Bins 0 and M: the sum and difference of Z_0's parts, as the post-processing makes them
+/// (the pair [`half_powers_to_bins`] wrote for Z_0 used a twiddle it has not).
+#[inline(always)]
+pub(super) fn zero_and_nyquist(zero: (f64, f64), power: &mut [f64]) {
+    let m = power.len() - 1;
     let (first, last) = (zero.0 + zero.1, zero.0 - zero.1);
     power[0] = first * first + 0.0 * 0.0;
     power[m] = last * last + 0.0 * 0.0;
 }
 
-/// One vector's bins k and M − k (see [`HalfPowerTables`]): realfft's post-processing of
-/// Z_k and Z_{M−k}, the same IEEE operations in the same order, none fused.
+/// Vector `v`'s bins k and M − k (see [`HalfPowerTables`]): realfft's post-processing of
+/// Z_k and Z_{M−k}, the same IEEE operations in the same order, none fused; Z_0 to `zero`
+/// when this vector holds it.
 #[inline(always)]
-unsafe fn half_powers_to_bins<V: Lanes, Y: LineValues<V>>(
+pub(super) unsafe fn half_powers_to_bins<V: Lanes, Y: LineValues<V>>(
     r: usize,
     y: &Y,
-    (bins, at): (&[u32], usize),
+    (bins, v): (&[u32], usize),
     tables: &HalfPowerTables,
     power: &mut [f64],
+    zero: &mut (f64, f64),
 ) {
+    if v == tables.zero.0 {
+        let (z_re, z_im) = y.value(0);
+        *zero = (
+            z_re.to_array()[tables.zero.1],
+            z_im.to_array()[tables.zero.1],
+        );
+    }
+    let at = v * PAD * ((r - 1) / 2 + 1);
     let m = power.len() - 1;
     let half = V::splat(0.5);
     for (k, bins) in bins.chunks_exact(PAD).enumerate() {

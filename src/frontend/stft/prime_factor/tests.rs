@@ -210,13 +210,23 @@ fn pair_powers_from_the_last_stage_equal_the_unpacked_spectrum_bit_for_bit() {
 /// A real frame of 2M points through the transform of its M sample pairs: its powers straight
 /// from the last stage ([`PrimeFactorFft::half_powers`] with tables) equal the spectrum's
 /// post-processing by [`super::super::kernels::half_spectrum_powers`] bit for bit, on every
-/// instruction set, for every register-factor length M (the tables must exist for each: else
+/// instruction set, for every register-factor length M and wide last stages of both kinds
+/// (the tables must exist for each: else
 /// the test would compare the slow path with itself), frames of 2M samples and shorter.
 #[test]
 fn half_powers_from_the_last_stage_equal_the_post_processed_spectrum_bit_for_bit() {
     use super::super::kernels::half_spectrum_powers;
     use super::super::tables::shared_half_twiddles;
-    for m in REGISTER_LENGTHS {
+    let lengths = REGISTER_LENGTHS.into_iter().chain([
+        // Wide last stages: direct sums (29, 31, 41) and Rader's (113 at 32768 Hz, 193, 257).
+        3 * 5 * 29,
+        9 * 31,
+        3 * 41,
+        5 * 193,
+        29 * 113,
+        3 * 17 * 257,
+    ]);
+    for m in lengths {
         let plan = PrimeFactorFft::new(m).expect("planned");
         let twiddles = shared_half_twiddles(2 * m);
         let tables = plan.half_power_tables(&twiddles);

@@ -13,7 +13,10 @@
 use rustfft::num_complex::Complex;
 
 use super::lanes::Lanes;
-use super::pair_powers::{powers_to_bins, row_starts, PairPowerPlan};
+use super::pair_powers::{
+    half_powers_to_bins, powers_to_bins, row_starts, zero_and_nyquist, HalfPowerTables,
+    PairPowerPlan,
+};
 use super::{Stage, PAD};
 
 /// Outputs k computed per pass over a line's sums: four accumulators each, and the four vectors
@@ -164,6 +167,37 @@ pub(super) unsafe fn last_pair_powers<V: Lanes>(
         put_bins::<V, _>(stage, x0, pairs, &mut collected);
         powers_to_bins::<V, _>(r, &Columns { columns, r }, bins, power_a, power_b);
     }
+}
+
+/// The innermost axis of the transform of a real frame's sample pairs straight to the frame's
+/// powers, as [`super::pair_powers::last_half`] for a wide factor (the lanes collected as in
+/// [`last_pair_powers`]).
+#[inline(always)]
+pub(super) unsafe fn last_half_powers<V: Lanes>(
+    stage: &Stage,
+    (re, im): (&[f64], &[f64]),
+    (plan, tables): (&PairPowerPlan, &HalfPowerTables),
+    power: &mut [f64],
+    scratch: &mut WideScratch,
+) {
+    let (r, w) = (stage.r, V::WIDTH);
+    debug_assert_eq!(w, PAD);
+    let pad = r.next_multiple_of(PAD);
+    let (columns, pairs) = scratch.fitted(r, w);
+    let mut zero = (0.0, 0.0);
+    for (v, (lines, bins)) in plan.vectors(r).enumerate() {
+        rows_into_columns::<V>((re, im), &row_starts(lines, pad), r, columns);
+        let values = Columns { columns, r };
+        let x0 = take_lines::<V, _>(stage, &values, pairs);
+        let mut collected = Collected {
+            columns: &mut *columns,
+            r,
+        };
+        put_bins::<V, _>(stage, x0, pairs, &mut collected);
+        let values = Columns { columns, r };
+        half_powers_to_bins::<V, _>(r, &values, (bins, v), tables, power, &mut zero);
+    }
+    zero_and_nyquist(zero, power);
 }
 
 /// Reads a vector of lines into `pairs`: Rader's transformed convolution input, or the sums and
