@@ -156,17 +156,28 @@ pub(super) unsafe fn last_pair_powers<V: Lanes>(
     let pad = r.next_multiple_of(PAD);
     let (columns, pairs) = scratch.fitted(r, w);
     for (lines, bins) in plan.vectors(r) {
-        rows_into_columns::<V>((re, im), &row_starts(lines, pad), r, columns);
-        let values = Columns { columns, r };
-        // The lines are read whole before the first bin is kept where they were.
-        let x0 = take_lines::<V, _>(stage, &values, pairs);
-        let mut collected = Collected {
-            columns: &mut *columns,
-            r,
-        };
-        put_bins::<V, _>(stage, x0, pairs, &mut collected);
+        transform_into_columns::<V>(stage, (re, im), &row_starts(lines, pad), columns, pairs);
         powers_to_bins::<V, _>(r, &Columns { columns, r }, bins, power_a, power_b);
     }
+}
+
+/// One vector of lines transformed, its bins collected in `columns` where the lines were
+/// (read whole by then), for [`last_pair_powers`] and [`last_half_powers`] to pair.
+#[inline(always)]
+unsafe fn transform_into_columns<V: Lanes>(
+    stage: &Stage,
+    (re, im): (&[f64], &[f64]),
+    starts: &[usize; PAD],
+    columns: &mut [f64],
+    pairs: &mut [f64],
+) {
+    let r = stage.r;
+    rows_into_columns::<V>((re, im), starts, r, columns);
+    let values = Columns { columns, r };
+    // The lines are read whole before the first bin is kept where they were.
+    let x0 = take_lines::<V, _>(stage, &values, pairs);
+    let mut collected = Collected { columns, r };
+    put_bins::<V, _>(stage, x0, pairs, &mut collected);
 }
 
 /// The innermost axis of the transform of a real frame's sample pairs straight to the frame's
@@ -186,14 +197,7 @@ pub(super) unsafe fn last_half_powers<V: Lanes>(
     let (columns, pairs) = scratch.fitted(r, w);
     let mut zero = (0.0, 0.0);
     for (v, (lines, bins)) in plan.vectors(r).enumerate() {
-        rows_into_columns::<V>((re, im), &row_starts(lines, pad), r, columns);
-        let values = Columns { columns, r };
-        let x0 = take_lines::<V, _>(stage, &values, pairs);
-        let mut collected = Collected {
-            columns: &mut *columns,
-            r,
-        };
-        put_bins::<V, _>(stage, x0, pairs, &mut collected);
+        transform_into_columns::<V>(stage, (re, im), &row_starts(lines, pad), columns, pairs);
         let values = Columns { columns, r };
         half_powers_to_bins::<V, _>(r, &values, (bins, v), tables, power, &mut zero);
     }
