@@ -30,6 +30,11 @@ pub struct FrfInput {
 /// Whether the file at `path` is an FRF CSV (its first non-comment line is an FRF header).
 pub fn is_frf_csv(path: &Path) -> bool {
     use std::io::BufRead;
+    // Only a regular file can be read twice: a named pipe or a process substitution
+    // (`<(tool)`) read here would lose its first bytes (a whole buffer) to this look.
+    if !std::fs::metadata(path).is_ok_and(|m| m.is_file()) {
+        return false;
+    }
     let Ok(f) = std::fs::File::open(path) else {
         return false;
     };

@@ -223,3 +223,58 @@ fn a_writer_that_waits_for_its_row_gets_it() {
     assert!(row.starts_with("ch0,0,"), "{row}");
     eprintln!("row after {waited:?}");
 }
+
+/// The same through a named pipe given by path, as a WAV stream of unknown length (detected
+/// like standard input, its descriptor watched the same way). Found a bug: the check for an
+/// FRF CSV opened the path a second time and read its first lines, so a named pipe or a
+/// process substitution (`dampscope analyze <(tool)`) lost its first 8 KB, and its WAV header
+/// with them ("no samples", or "not a recognised input").
+#[cfg(unix)]
+#[test]
+fn a_named_pipe_keeps_its_first_bytes_and_answers_a_writer_that_waits() {
+    use std::os::unix::ffi::OsStrExt;
+    let path = std::env::temp_dir().join(format!("dampscope-fifo-{}", std::process::id()));
+    let c_path = std::ffi::CString::new(path.as_os_str().as_bytes()).unwrap();
+    // SAFETY: a valid NUL-terminated path; mkfifo only creates the node.
+    assert_eq!(unsafe { libc::mkfifo(c_path.as_ptr(), 0o600) }, 0);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
+        .arg("analyze")
+        .arg(&path)
+        .args(["--band", "52.5:57.5", "--max-decay-s", "0.5"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("binary runs");
+    let stdout = child.stdout.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().skip(1) {
+            if tx.send(line.unwrap()).is_err() {
+                break;
+            }
+        }
+    });
+    // Opening the write end waits for the reader to open the pipe.
+    let mut fifo = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    // A float WAV header whose RIFF and data lengths are unknown (0xFFFFFFFF), then the data.
+    let mut wav = b"RIFF\xff\xff\xff\xffWAVEfmt ".to_vec();
+    wav.extend(16u32.to_le_bytes());
+    wav.extend(3u16.to_le_bytes()); // IEEE float
+    wav.extend(1u16.to_le_bytes());
+    wav.extend(4000u32.to_le_bytes());
+    wav.extend(16000u32.to_le_bytes());
+    wav.extend(4u16.to_le_bytes());
+    wav.extend(32u16.to_le_bytes());
+    wav.extend(b"data\xff\xff\xff\xff");
+    wav.extend(decay_55_hz_f32(3000));
+    fifo.write_all(&wav).unwrap();
+    fifo.flush().unwrap();
+    let row = rx.recv_timeout(std::time::Duration::from_secs(10));
+    drop(fifo);
+    let status = child.wait().unwrap();
+    reader.join().unwrap();
+    std::fs::remove_file(&path).ok();
+    assert!(status.success(), "exit {status:?}");
+    let row = row.expect("no row while the pipe was open");
+    assert!(row.starts_with("ch0,0,"), "{row}");
+}
