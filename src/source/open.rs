@@ -204,6 +204,15 @@ fn stdin_wav_file(opts: &InputOptions) -> Result<Option<Box<dyn Source>>, Source
     Ok(Some(source))
 }
 
+/// Whether the first line of `head` that is neither blank nor a `#` comment is an FRF CSV
+/// header ([`super::frf_csv::is_frf_csv_header`]).
+fn starts_like_frf_csv(head: &[u8]) -> bool {
+    String::from_utf8_lossy(head)
+        .lines()
+        .find(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'))
+        .is_some_and(super::frf_csv::is_frf_csv_header)
+}
+
 /// Opens a stream whose format must be detected (or is raw per `opts`). `what` names it in
 /// errors. Generic so that tests can pass a `Cursor` instead of standard input. Binary frames
 /// are read in whole blocks (the same as a mapped file's); the reader's pauses are not
@@ -261,6 +270,15 @@ fn open_stream_watched<R: Read + Send + 'static>(
                 "expected a WAV stream (starting with RIFF), CSV text, or raw samples (declared raw); got {}",
                 describe(&head)
             ),
+        });
+    }
+    if is_text && starts_like_frf_csv(&head) {
+        return Err(SourceError::UnrecognisedFormat {
+            what: what.to_string(),
+            detail: "an FRF CSV (frequency and complex-response columns), which is read from a \
+                     regular file given by path, not from a stream: its rows would be taken \
+                     for time series; save it to a file"
+                .into(),
         });
     }
     let stream = BufReader::new(Cursor::new(head).chain(reader));

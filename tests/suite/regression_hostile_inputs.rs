@@ -180,3 +180,33 @@ fn broken_inputs_end_with_a_message_not_a_signal() {
         }
     }
 }
+
+/// An FRF CSV piped to standard input was read as time series (its `f`, `h1_re`, `h1_im`
+/// columns as three channels, rows out with a given `--fs`); FRF input is read whole from a
+/// file, so a stream that starts like one is refused, saying so (exit 1), a comment line first
+/// or not.
+#[test]
+fn an_frf_csv_on_standard_input_is_refused_not_read_as_time_series() {
+    for text in [
+        "f,h1_re,h1_im\n0,1,0\n1,0.5,0.1\n2,0.2,0.1\n",
+        "# measured 2026-11-27\n\nfreq_hz,a_db,a_deg\n0,0,0\n1,-3,10\n",
+    ] {
+        let out =
+            crate::common::TestCommand::new(["analyze", "-", "--fs", "1000", "--band", "10:50"])
+                .stdin(text.as_bytes())
+                .output();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(1), "{err}");
+        assert!(err.contains("FRF CSV"), "{err}");
+        assert!(
+            out.stdout.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&out.stdout)
+        );
+    }
+    // A time series whose column merely starts with f is still read.
+    let out = crate::common::TestCommand::new(["analyze", "-", "--fs", "1000", "--band", "10:50"])
+        .stdin(b"force,x\n0,1\n1,0.5\n2,0.25\n")
+        .output();
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("FRF CSV"));
+}
