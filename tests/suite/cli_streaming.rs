@@ -49,6 +49,24 @@ fn analyze_one_channel(extra: &[&str]) -> std::process::Child {
         .expect("binary runs")
 }
 
+/// The data rows of a child's standard output (its header skipped), each sent as it comes.
+fn data_rows(
+    stdout: std::process::ChildStdout,
+) -> (
+    std::sync::mpsc::Receiver<String>,
+    std::thread::JoinHandle<()>,
+) {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let reader = std::thread::spawn(move || {
+        for line in BufReader::new(stdout).lines().skip(1) {
+            if tx.send(line.unwrap()).is_err() {
+                break;
+            }
+        }
+    });
+    (rx, reader)
+}
+
 #[test]
 fn long_piped_stream_gives_results_early_and_bounded_memory() {
     let decay_s = 2.0;
@@ -200,15 +218,7 @@ fn a_slow_writers_pipe_gives_the_files_rows_bit_for_bit() {
 fn a_writer_that_waits_for_its_row_gets_it() {
     let bytes = decay_55_hz_f32(3000);
     let mut child = analyze_one_channel(&["--max-decay-s", "0.5"]);
-    let stdout = child.stdout.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().skip(1) {
-            if tx.send(line.unwrap()).is_err() {
-                break;
-            }
-        }
-    });
+    let (rx, reader) = data_rows(child.stdout.take().unwrap());
     let mut stdin = child.stdin.take().unwrap();
     stdin.write_all(&bytes).unwrap();
     stdin.flush().unwrap();
@@ -245,15 +255,7 @@ fn a_named_pipe_keeps_its_first_bytes_and_answers_a_writer_that_waits() {
         .stderr(Stdio::null())
         .spawn()
         .expect("binary runs");
-    let stdout = child.stdout.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    let reader = std::thread::spawn(move || {
-        for line in BufReader::new(stdout).lines().skip(1) {
-            if tx.send(line.unwrap()).is_err() {
-                break;
-            }
-        }
-    });
+    let (rx, reader) = data_rows(child.stdout.take().unwrap());
     // Opening the write end waits for the reader to open the pipe.
     let mut fifo = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
     // A float WAV header whose RIFF and data lengths are unknown (0xFFFFFFFF), then the data.
