@@ -139,7 +139,6 @@ fn raw_settings(
     Ok((fs, ch))
 }
 
-#[cfg(not(unix))]
 fn raw_source<R: Read + Send + 'static>(
     reader: R,
     what: &str,
@@ -230,8 +229,8 @@ pub fn open_stream<R: Read + Send + 'static>(
     open_stream_watched(reader, what, opts, None)
 }
 
-/// [`open_stream`] of a reader that reads descriptor `pause_fd` (when known): its binary
-/// sources hand out the frames that arrived when the writer pauses
+/// [`open_stream`] of a reader that reads descriptor `pause_fd` (when known): a WAV stream
+/// hands out the frames that arrived when the writer pauses
 /// ([`super::STREAM_PAUSE_MS`]) instead of waiting for a whole block.
 fn open_stream_watched<R: Read + Send + 'static>(
     mut reader: R,
@@ -242,14 +241,9 @@ fn open_stream_watched<R: Read + Send + 'static>(
     #[cfg(not(unix))]
     let _ = pause_fd;
     if let Some(format) = opts.raw {
-        let (fs, ch) = raw_settings(what, format, opts)?;
-        let source = RawSource::new(reader, what, format, fs, ch)?;
-        #[cfg(unix)]
-        let source = match pause_fd {
-            Some(fd) => source.waking_on_pause(fd),
-            None => source,
-        };
-        return Ok(Box::new(source));
+        // Raw standard input and raw files reach `raw_file_source` (their descriptor watched
+        // there); only `open_stream`'s readers come here, unwatched.
+        return raw_source(reader, what, format, opts);
     }
     let mut head = Vec::with_capacity(SNIFF_BYTES);
     read_up_to(&mut reader, &mut head, SNIFF_BYTES).map_err(|e| SourceError::Io {
