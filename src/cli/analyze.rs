@@ -83,6 +83,7 @@ pub fn exit_code_of(summary: &pipeline::RunSummary) -> i32 {
 /// Runs `analyze`; returns the exit code (0, or 3 when part of the input was damaged).
 pub fn run(args: &AnalyzeArgs) -> anyhow::Result<i32> {
     let opened = open_input(&args.input, &args.input_format.options())?;
+    super::warn_all(&opened.warnings);
     let window_tau_s = opened
         .meta
         .as_ref()

@@ -106,6 +106,7 @@ impl BenchArgs {
             ..Default::default()
         };
         let mut opened = open_input(path, &options)?;
+        super::warn_all(&opened.warnings);
         let info = opened.source.info().clone();
         let data = read_all(opened.source.as_mut(), MAX_WHOLE_SAMPLES)?;
         let mut bytes = Vec::new();

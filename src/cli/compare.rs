@@ -110,6 +110,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
         .as_deref()
         .context("compare needs INPUT (a file, a directory or -), or --sweep")?;
     let mut opened = open_input(input, &args.input_format.options())?;
+    super::warn_all(&opened.warnings);
     let rec = Recordings::from_source(opened.source.as_mut(), MAX_WHOLE_SAMPLES)?;
     let tau = opened.meta.and_then(|m| m.exponential_window_tau_s);
     let comparison = compare(&rec, tau, &args.plan())?;

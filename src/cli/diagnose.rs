@@ -54,6 +54,7 @@ pub struct DiagnoseArgs {
 pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     let mut set = open_recording_set(&args.input)
         .with_context(|| format!("recording set {}", args.input.display()))?;
+    super::warn_all(&set.warnings);
     let sensors = sensor_positions(&set.sensors);
     let mut rec = Recordings::from_source(set.source.as_mut(), MAX_DIAGNOSE_SAMPLES)
         .with_context(|| format!("reading {}", args.input.display()))?;

@@ -105,6 +105,7 @@ pub fn global_table(globals: &[GlobalDamping]) -> String {
 /// Runs `map`; returns the exit code (0, or 3 when part of the input was damaged).
 pub fn run(args: &MapArgs) -> anyhow::Result<i32> {
     let opened = open_input(&args.input, &args.input_format.options())?;
+    super::warn_all(&opened.warnings);
     let sensors = match (&args.sensors, opened.sensors) {
         (Some(path), _) => read_sensors(path)?,
         (None, Some(s)) => s,

@@ -113,6 +113,13 @@ pub fn main_exit_code() -> i32 {
 /// An error and its causes, joined by ": ", each cause left out where the text so far already
 /// ends with it (the library's errors name their cause in their own message, so the chain
 /// repeated it: "cannot read x: No such file …: No such file …").
+/// Prints what the library read otherwise than the input's files said, one warning a line.
+fn warn_all(warnings: &[String]) {
+    for w in warnings {
+        eprintln!("dampscope: warning: {w}");
+    }
+}
+
 fn error_chain(e: &anyhow::Error) -> String {
     let mut text = String::new();
     for cause in e.chain() {

@@ -228,6 +228,7 @@ fn progress_bar() -> indicatif::ProgressBar {
 pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
     let t0 = Instant::now();
     let mut opened = open_input(&args.input, &args.input_format.options())?;
+    super::warn_all(&opened.warnings);
     let mut rec = Recordings::from_source(opened.source.as_mut(), MAX_MODAL_SAMPLES)
         .with_context(|| format!("reading {}", args.input))?;
     if let Some(snr) = args.add_noise_db {

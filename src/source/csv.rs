@@ -4,7 +4,10 @@
 //! - a header row, then numbers. A first column named `time` or `t` (any case) is the time in
 //!   seconds: the sample rate comes from its spacing, which must be uniform within 1e-6
 //!   relative. Every other column is a channel named by its header;
-//! - no header (the first row is numeric): every column is a channel, named `ch0`, `ch1`, ….
+//! - no header (the first row is numeric): every column is a channel, named `ch0`, `ch1`, …
+//!   ([`CsvSource::with_channel_ids`]: unless it holds the known channel names).
+//!
+//! A field may be quoted (RFC 4180: `"Acc, top"`, or every number quoted).
 //!
 //! Lines starting with `#` are comments; `# fs=51200` (or `# fs: 51200`, anything may follow
 //! the number) gives the sample rate. Every rate the input states (the caller's, the comment,
@@ -18,6 +21,7 @@
 
 use std::io::{BufRead, Read};
 
+use super::csv_text::{detect_delim, parse_fs_comment, printed_resolution, split_fields};
 use super::raw::check_fs;
 use super::{Block, SignalInfo, Source, SourceError};
 
@@ -49,6 +53,8 @@ pub struct CsvSource<R: BufRead + Send> {
     rate_uncertainty: f64,
     /// Columns per row, including the time column.
     n_cols: usize,
+    /// Channel k's column among the channel columns (None: in the file's order).
+    column_of_channel: Option<Vec<usize>>,
     line_no: usize,
     /// Comment-given sample rate seen while reading (first one wins).
     comment_fs: Option<f64>,
@@ -63,29 +69,6 @@ pub struct CsvSource<R: BufRead + Send> {
     buf: Vec<u8>,
 }
 
-fn parse_fs_comment(comment: &str) -> Option<f64> {
-    let rest = comment.trim_start_matches('#').trim_start();
-    let rest = rest
-        .strip_prefix("fs")
-        .or_else(|| rest.strip_prefix("FS"))?
-        .trim_start();
-    let rest = rest
-        .strip_prefix('=')
-        .or_else(|| rest.strip_prefix(':'))?
-        .trim_start();
-    let end = rest
-        .find(|c: char| !(c.is_ascii_digit() || matches!(c, '.' | 'e' | 'E' | '+' | '-')))
-        .unwrap_or(rest.len());
-    rest[..end].parse().ok()
-}
-
-fn detect_delim(line: &str) -> char {
-    [',', ';', '\t']
-        .into_iter()
-        .find(|&d| line.contains(d))
-        .unwrap_or(',')
-}
-
 impl<R: BufRead + Send> CsvSource<R> {
     /// Reads the header (and, when the rate comes from the time column, the first two rows).
     /// `fs_hz` is an explicit sample rate that wins over the file's; `what` names the input.
@@ -97,7 +80,29 @@ impl<R: BufRead + Send> CsvSource<R> {
         what: impl Into<String>,
         fs_hz: Option<f64>,
     ) -> Result<Self, SourceError> {
-        let what = what.into();
+        Self::open(reader, what.into(), fs_hz, &[])
+    }
+
+    /// [`CsvSource::new`] for input whose channels are known by name: a first line holding
+    /// exactly these names (after an optional `time`/`t` column, in any order) is the header
+    /// even when they read as numbers. A recording set's `responses.csv` names its columns by
+    /// sensor id (FORMATS.md §1), and ids such as `1001` made a numeric header that detection
+    /// read as a first sample of 1001.
+    pub fn with_channel_ids(
+        reader: R,
+        what: impl Into<String>,
+        fs_hz: Option<f64>,
+        ids: &[String],
+    ) -> Result<Self, SourceError> {
+        Self::open(reader, what.into(), fs_hz, ids)
+    }
+
+    fn open(
+        reader: R,
+        what: String,
+        fs_hz: Option<f64>,
+        ids: &[String],
+    ) -> Result<Self, SourceError> {
         if let Some(fs) = fs_hz {
             check_fs(&what, fs)?;
         }
@@ -115,6 +120,7 @@ impl<R: BufRead + Send> CsvSource<R> {
             last_time_resolution_s: 0.0,
             rate_uncertainty: 0.0,
             n_cols: 0,
+            column_of_channel: None,
             line_no: 0,
             comment_fs: None,
             queued: Default::default(),
@@ -130,19 +136,16 @@ impl<R: BufRead + Send> CsvSource<R> {
             Line::End => return Err(SourceError::Empty { what: s.what }),
         };
         s.delim = detect_delim(&first);
-        let fields: Vec<&str> = first.split(s.delim).map(str::trim).collect();
+        let fields = split_fields(&first, s.delim);
         s.n_cols = fields.len();
         let numeric = fields.iter().all(|f| f.parse::<f64>().is_ok());
-        if numeric {
+        if numeric && !names_the_channels(&fields, ids) {
             s.info.channel_names = (0..s.n_cols).map(|k| format!("ch{k}")).collect();
             let row = s.parse_row(&first, true)?;
             s.queued.push_back(row);
             s.check_orientation()?;
         } else {
-            let names: Vec<String> = fields
-                .iter()
-                .map(|f| f.trim_matches('"').trim().to_string())
-                .collect();
+            let names: Vec<String> = fields.iter().map(|f| f.to_string()).collect();
             s.time_column = matches!(names[0].to_ascii_lowercase().as_str(), "time" | "t");
             let skip = usize::from(s.time_column);
             s.info.channel_names = names[skip..].to_vec();
@@ -327,6 +330,25 @@ impl<R: BufRead + Send> CsvSource<R> {
         Ok(self)
     }
 
+    /// Takes the channels in the order of `names` when the header names exactly those channels
+    /// in another order (a recording set's columns are named by sensor id, FORMATS.md §1, and
+    /// its channels follow `sensors.csv`); otherwise leaves the order as it is.
+    pub fn in_channel_order(mut self, names: &[String]) -> Self {
+        let header = &self.info.channel_names;
+        if header.len() != names.len() || header == names {
+            return self;
+        }
+        let columns: Option<Vec<usize>> = names
+            .iter()
+            .map(|n| header.iter().position(|h| h == n))
+            .collect();
+        if let Some(columns) = columns {
+            self.info.channel_names = names.to_vec();
+            self.column_of_channel = Some(columns);
+        }
+        self
+    }
+
     fn malformed(&self, detail: String) -> SourceError {
         SourceError::Malformed {
             what: self.what.clone(),
@@ -381,8 +403,8 @@ impl<R: BufRead + Send> CsvSource<R> {
     /// Parses one data row into its numbers (time first when there is a time column).
     fn parse_row(&mut self, line: &str, newline: bool) -> Result<Vec<f64>, SourceError> {
         let mut row = Vec::with_capacity(self.n_cols);
-        for (k, field) in line.split(self.delim).enumerate() {
-            let f = field.trim();
+        for (k, field) in split_fields(line, self.delim).iter().enumerate() {
+            let f: &str = field;
             let is_channel = !(self.time_column && k == 0);
             if !is_channel {
                 self.row_time_resolution_s = printed_resolution(f);
@@ -472,6 +494,22 @@ impl<R: BufRead + Send> CsvSource<R> {
     }
 }
 
+/// Whether a first line's fields are exactly `ids`, in any order, after an optional time column.
+fn names_the_channels(fields: &[std::borrow::Cow<'_, str>], ids: &[String]) -> bool {
+    let channels = match fields.first() {
+        Some(f) if matches!(f.to_ascii_lowercase().as_str(), "time" | "t") => &fields[1..],
+        _ => fields,
+    };
+    if ids.is_empty() || channels.len() != ids.len() {
+        return false;
+    }
+    let mut a: Vec<&str> = channels.iter().map(|f| f.as_ref()).collect();
+    let mut b: Vec<&str> = ids.iter().map(String::as_str).collect();
+    a.sort_unstable();
+    b.sort_unstable();
+    a == b
+}
+
 /// Relative tolerance within which two stated sample rates agree (the time column's own
 /// spacing tolerance), unless the time column's printing is coarser.
 const FS_AGREEMENT: f64 = 1e-6;
@@ -481,20 +519,6 @@ const TIME_FIT_ROWS: usize = 4096;
 
 /// Cells (rows × columns) read ahead at most for the rate from the time column.
 const TIME_FIT_CELLS: usize = 1 << 20;
-
-/// The step of the last printed digit of a number: `0.00025` → 1e-5, `2.5e-4` → 1e-5; an
-/// integer (`0`, `3`) counts as exact (0), as writers print whole times without decimals.
-fn printed_resolution(text: &str) -> f64 {
-    if !text.contains(['.', 'e', 'E']) {
-        return 0.0;
-    }
-    let (mantissa, exponent) = match text.find(['e', 'E']) {
-        Some(i) => (&text[..i], text[i + 1..].parse::<i32>().unwrap_or(0)),
-        None => (text, 0),
-    };
-    let decimals = mantissa.find('.').map_or(0, |i| mantissa.len() - i - 1) as i32;
-    10f64.powi(exponent - decimals)
-}
 
 impl<R: BufRead + Send> Source for CsvSource<R> {
     fn info(&self) -> &SignalInfo {
@@ -547,8 +571,17 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
                     }
                 }
             };
-            for (ch, v) in block.channels.iter_mut().zip(&row[skip..]) {
-                ch.push(*v);
+            match &self.column_of_channel {
+                None => {
+                    for (ch, v) in block.channels.iter_mut().zip(&row[skip..]) {
+                        ch.push(*v);
+                    }
+                }
+                Some(columns) => {
+                    for (ch, &c) in block.channels.iter_mut().zip(columns) {
+                        ch.push(row[skip + c]);
+                    }
+                }
             }
             got += 1;
         }

@@ -46,6 +46,8 @@ pub struct OpenedInput {
     pub sensors: Option<Vec<Sensor>>,
     /// Metadata (recording sets only).
     pub meta: Option<RecordingMeta>,
+    /// What the input's files said that was read otherwise, for the user (recording sets).
+    pub warnings: Vec<String>,
 }
 
 impl OpenedInput {
@@ -54,6 +56,7 @@ impl OpenedInput {
             source,
             sensors: None,
             meta: None,
+            warnings: Vec::new(),
         }
     }
 }
@@ -321,6 +324,7 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
             source: set.source,
             sensors: Some(set.sensors),
             meta: Some(set.meta),
+            warnings: set.warnings,
         });
     }
     let file = File::open(p).map_err(|e| SourceError::Io {
@@ -338,6 +342,7 @@ pub fn open_input(path: &str, opts: &InputOptions) -> Result<OpenedInput, Source
             source: frf.source,
             sensors: frf.sensors,
             meta: Some(frf.meta),
+            warnings: Vec::new(),
         });
     }
     let ext = p

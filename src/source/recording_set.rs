@@ -95,6 +95,9 @@ pub struct RecordingSet {
     pub excitation: Vec<Excitation>,
     /// The responses.
     pub source: Box<dyn Source>,
+    /// What was read differently from what the files say, for the user (e.g. a `meta.json`
+    /// rate that the WAV header overrides).
+    pub warnings: Vec<String>,
 }
 
 pub(crate) fn io_err(path: &Path, e: std::io::Error) -> SourceError {
@@ -116,12 +119,12 @@ fn malformed(path: &Path, format: &'static str, detail: String) -> SourceError {
 type Table = (Vec<String>, Vec<(u64, Vec<String>)>);
 
 /// Reads a small CSV table: returns the lower-cased header and the rows with their line numbers.
+/// No line is a comment: FORMATS.md §1 defines none, and sensor ids may start with `#`.
 fn read_table(path: &Path) -> Result<Table, SourceError> {
     let file = File::open(path).map_err(|e| io_err(path, e))?;
     let mut r = ::csv::ReaderBuilder::new()
         .trim(::csv::Trim::All)
         .flexible(true)
-        .comment(Some(b'#'))
         .from_reader(BufReader::new(file));
     let header: Vec<String> = r
         .headers()
@@ -239,6 +242,64 @@ pub fn read_excitation(path: &Path) -> Result<Vec<Excitation>, SourceError> {
         .collect()
 }
 
+/// Reads `meta.json` as other tools write it: a UTF-8 byte-order mark is skipped, a key given
+/// twice keeps its last value, `null` means absent, and the informative keys (`snr_db`,
+/// `quantity`, `unit`) are dropped with a warning when they are not what they should be; an
+/// error names the key.
+fn read_meta(path: &Path, warnings: &mut Vec<String>) -> Result<RecordingMeta, SourceError> {
+    let bytes = std::fs::read(path).map_err(|e| io_err(path, e))?;
+    let text = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(&bytes);
+    let value: serde_json::Value =
+        serde_json::from_slice(text).map_err(|e| malformed(path, "json", e.to_string()))?;
+    let serde_json::Value::Object(mut keys) = value else {
+        return Err(malformed(
+            path,
+            "json",
+            format!("expected an object of keys, got {value}"),
+        ));
+    };
+    keys.retain(|_, v| !v.is_null());
+    for informative in ["snr_db", "quantity", "unit"] {
+        let Some(v) = keys.get(informative) else {
+            continue;
+        };
+        let fits = if informative == "snr_db" {
+            v.is_number()
+        } else {
+            v.is_string()
+        };
+        if !fits {
+            warnings.push(format!(
+                "{}: {informative} = {v} ignored (informative only; expected a {})",
+                path.display(),
+                if informative == "snr_db" {
+                    "number of dB"
+                } else {
+                    "string"
+                }
+            ));
+            keys.remove(informative);
+        }
+    }
+    let mut meta = RecordingMeta::default();
+    macro_rules! take {
+        ($key:literal, $slot:expr) => {
+            if let Some(v) = keys.get($key).cloned() {
+                $slot = serde_json::from_value(v)
+                    .map_err(|e| malformed(path, "json", format!("{}: {e}", $key)))?;
+            }
+        };
+    }
+    take!("fs", meta.fs);
+    take!("kind", meta.kind);
+    take!("quantity", meta.quantity);
+    take!("unit", meta.unit);
+    take!("snr_db", meta.snr_db);
+    take!("exponential_window_tau_s", meta.exponential_window_tau_s);
+    take!("scale", meta.scale);
+    Ok(meta)
+}
+
 /// Opens the recording set in `dir`. `responses.wav` wins over `responses.csv`; `meta.json` and
 /// `excitation.csv` are optional. Errors: `ChannelCount` when the responses do not have one
 /// channel per `sensors.csv` row, `Setting` when neither response file exists.
@@ -253,10 +314,9 @@ pub fn open_recording_set_with(
     frf: &super::frf::FrfToImpulse,
 ) -> Result<RecordingSet, SourceError> {
     let meta_path = dir.join("meta.json");
+    let mut warnings = Vec::new();
     let meta = if meta_path.exists() {
-        let f = File::open(&meta_path).map_err(|e| io_err(&meta_path, e))?;
-        serde_json::from_reader(BufReader::new(f))
-            .map_err(|e| malformed(&meta_path, "json", e.to_string()))?
+        read_meta(&meta_path, &mut warnings)?
     } else {
         RecordingMeta::default()
     };
@@ -278,23 +338,22 @@ pub fn open_recording_set_with(
             s = s.with_int_scale(scale);
         }
         let got = s.header().channels;
+        // FORMATS.md §1: the WAV header's rate is the truth (a header holds whole hertz; a
+        // meta.json may state the exact rate, or describe a responses.csv the WAV overrides).
         let header_fs = f64::from(s.header().sample_rate_hz);
         if let Some(fs) = meta.fs {
             if (fs / header_fs - 1.0).abs() > 1e-9 {
-                return Err(SourceError::Setting {
-                    what: what.clone(),
-                    detail: format!(
-                        "contradictory sample rates: the WAV header says {header_fs} Hz, meta.json says fs = {fs} Hz (remove or correct meta.json's fs)"
-                    ),
-                });
+                warnings.push(format!(
+                    "{what}: the WAV header says {header_fs} Hz, meta.json says fs = {fs} Hz: the header's rate is used (docs/FORMATS.md §1)"
+                ));
             }
         }
         (what, got, Box::new(s))
     } else if csv.exists() {
         let what = csv.display().to_string();
         let f = File::open(&csv).map_err(|e| io_err(&csv, e))?;
-        let s = CsvSource::new(BufReader::new(f), what.clone(), meta.fs)?;
-        check_column_order(&what, &s.info().channel_names, &ids)?;
+        let s = CsvSource::with_channel_ids(BufReader::new(f), what.clone(), meta.fs, &ids)?
+            .in_channel_order(&ids);
         (what, s.info().channels(), Box::new(s))
     } else if let Some(path) = FRF_RESPONSE_FILES
         .iter()
@@ -318,6 +377,7 @@ pub fn open_recording_set_with(
             sensors,
             excitation,
             source: frf.source,
+            warnings,
         });
     } else {
         return Err(SourceError::Setting {
@@ -341,29 +401,8 @@ pub fn open_recording_set_with(
         sensors,
         excitation,
         source,
+        warnings,
     })
-}
-
-/// Columns of `responses.csv` are named by sensor id and taken in `sensors.csv` row order. When
-/// the header holds exactly the sensor ids but in another order, the data would be silently
-/// mislabelled: that is an error. Other names (`ch0`, …) are renamed by position.
-fn check_column_order(what: &str, columns: &[String], ids: &[String]) -> Result<(), SourceError> {
-    if columns.len() == ids.len() && columns != ids {
-        let mut a: Vec<&String> = columns.iter().collect();
-        let mut b: Vec<&String> = ids.iter().collect();
-        a.sort();
-        b.sort();
-        if a == b {
-            return Err(SourceError::Malformed {
-                what: what.to_string(),
-                format: "csv",
-                detail: format!(
-                    "expected the channel columns in sensors.csv order {ids:?}, got {columns:?}"
-                ),
-            });
-        }
-    }
-    Ok(())
 }
 
 /// Wraps a source so that its channels carry the given names (same count, checked by caller).

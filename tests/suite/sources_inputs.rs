@@ -271,7 +271,7 @@ proptest! {
 }
 
 #[test]
-fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
+fn integer_wav_in_a_set_uses_meta_scale_and_csv_columns_are_taken_by_id() {
     let dir = tmpdir("scale");
     std::fs::write(dir.join("sensors.csv"), "id,x,y\nA,0,0\nB,1,1\n").unwrap();
     let spec = hound::WavSpec {
@@ -303,13 +303,16 @@ fn integer_wav_in_a_set_uses_meta_scale_and_csv_order_is_checked() {
     assert_eq!(set.meta.kind, DecayKind::FreeDecay);
     let (got, _) = drain(set.source.as_mut(), 10);
     assert_eq!(got, [vec![0.1, 16.384], vec![-0.2, -32.768]]);
-    // CSV columns holding the sensor ids in another order would mislabel data: refused.
+    // CSV columns holding the sensor ids in another order are taken by name (FORMATS.md §1:
+    // named by sensor id), in sensors.csv order.
     std::fs::remove_file(dir.join("responses.wav")).unwrap();
     std::fs::write(dir.join("responses.csv"), "time,B,A\n0,1,2\n0.001,3,4\n").unwrap();
-    assert!(matches!(
-        open_recording_set(&dir),
-        Err(SourceError::Malformed { .. })
-    ));
+    let mut set = open_recording_set(&dir).unwrap();
+    assert_eq!(set.source.info().channel_names, ["A", "B"]);
+    assert_eq!(
+        drain(set.source.as_mut(), 10).0,
+        [vec![2.0, 4.0], vec![1.0, 3.0]]
+    );
     std::fs::write(dir.join("responses.csv"), "time,A,B\n0,1,2\n0.001,3,4\n").unwrap();
     let mut set = open_recording_set(&dir).unwrap();
     assert!((set.source.info().sample_rate_hz - 1000.0).abs() < 1e-9);
