@@ -62,6 +62,11 @@ pub enum Flag {
     /// stands (the same modes ring on); its level, its first frames (EDT) and an FRF from the
     /// hit do not.
     DoubleHit,
+    /// The decay is as fast as the band filter's own ringing: B·T60 below
+    /// [`crate::frontend::BT60_MIN`], B the filter's bandwidth. What was measured is the filter
+    /// (in an empty band: its response to the onset). No number is given; use a wider band or
+    /// the STFT with a short window.
+    FilterLimited,
     /// The analysis of this channel stopped on an internal error (a bug, reported on stderr);
     /// the other channels were analysed.
     InternalError,
@@ -124,6 +129,7 @@ impl Flag {
             Flag::ExponentialWindowRemoved => "exponential_window_removed",
             Flag::ClippedHit => "clipped_hit",
             Flag::DoubleHit => "double_hit",
+            Flag::FilterLimited => "filter_limited",
             Flag::InternalError => "internal_error",
         }
     }

@@ -120,7 +120,8 @@ pub fn flag_leakage(
                     tone.min(spread)
                 })
                 .sum();
-            leaking[b] = e <= margin * flat;
+            // An off-band band stays condemned whatever the level says.
+            leaking[b] |= e <= margin * flat;
         }
         if leaking[b] {
             continue;
@@ -243,6 +244,28 @@ mod tests {
         };
         flag_leakage(&mut e, &bands[..1], &tolerant);
         assert!(!e[0].has(Flag::Leakage), "within the tolerance");
+    }
+
+    /// Found on a noiseless 210 Hz decay (`synth --mode 210:0.01`, 200 ms STFT): the 275–325
+    /// and 375–425 Hz bands, whose f_dominant was 210 Hz, reported D 0.007 and 0.005 without a
+    /// flag. The level test, which the tone model sent on to the flat model, cleared them and
+    /// overwrote the off-band verdict.
+    #[test]
+    fn an_off_band_frequency_is_not_cleared_by_the_level_test() {
+        // Band 1 holds 54 Hz content: off its 70–80 Hz band. The tone model condemns its level,
+        // the flat model clears it (as in the test above): it must stay flagged.
+        let bands = [band(45.0, 55.0, 1.0), band(70.0, 80.0, 5e-3)];
+        let flat = Toy {
+            flat: Some(1e-4),
+            ..toy(&bands)
+        };
+        let mut e = vec![est(54.0, 1.0), est(54.0, 1.0)];
+        flag_leakage(&mut e, &bands, &flat);
+        assert!(
+            e[1].has(Flag::Leakage) && e[1].damping_ratio.is_none(),
+            "{:?}",
+            e[1]
+        );
     }
 
     /// The toy front end with a loose bound of its gain (`factor` × the gain; 1 = exact).

@@ -178,6 +178,14 @@ pub trait FrontEnd: Send {
         self.mode_gain(band, f_hz, sigma_per_s)
     }
 
+    /// The shortest T60 (s) band `band` resolves: below it the decay measured is the band
+    /// filter's own ringing ([`crate::decay::Flag::FilterLimited`]). 0 where the front end has
+    /// no such limit of its own (the STFT's is its frame count, `too_few_frames`).
+    fn shortest_t60_s(&self, band: usize) -> f64 {
+        let _ = band;
+        0.0
+    }
+
     /// How far (Hz) the frequency a band reports may lie outside the band before it counts as
     /// another band's: half a bin for the STFT (a bin holds what lies within it), 0 for a filter.
     fn frequency_tolerance_hz(&self) -> f64 {
@@ -251,6 +259,13 @@ pub(crate) fn mode_z_inv(
 /// `BANK_CUT_FACTOR / B` seconds at the end of a reversed decay, where the backward filter's
 /// start-up transient lands.
 pub const BANK_CUT_FACTOR: f64 = 3.0;
+
+/// B·T60 below which a band filter measures its own ringing rather than the decay (B the
+/// filter's −3 dB bandwidth, Hz; T60 in s): a 3rd-order Butterworth band-pass's slowest poles
+/// decay at πB·sin(π/6), an energy T60 of 4.4 / B; Jacobsen & Rindel ("Time reversed decay
+/// measurements", J. Sound Vib. 117, 1987) give B·T60 > 4 as the limit of time-reversed
+/// filtering. Forward filtering stays biased up to B·T60 ≈ 16 (a few %; its number stands).
+pub const BT60_MIN: f64 = 4.0;
 
 /// Checks the settings that the buffering filter banks (Goyder, octave) share: frame period in ms
 /// (> 0), the transient cut factor (≥ 0) and the longest decay buffered in s (1/fs to 1e10/fs).

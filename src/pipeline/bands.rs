@@ -70,7 +70,8 @@ impl LeakageModel for FrontEndLeakage<'_> {
 }
 
 /// The tests across the bands of one decay: a band narrower than the front end resolves gives
-/// no number ([`Flag::BelowResolution`]), nor does a band whose decay is another band's
+/// no number ([`Flag::BelowResolution`]), nor does a decay as fast as the band filter's own
+/// ringing ([`Flag::FilterLimited`]), nor a band whose decay is another band's
 /// ([`Flag::Leakage`], see [`crate::decay::leakage`]) or holds a new hit ([`Flag::MergedHits`]).
 pub(super) fn judge_bands<E: DecayEstimator>(
     front_end: &dyn FrontEnd,
@@ -92,9 +93,15 @@ pub(super) fn judge_bands<E: DecayEstimator>(
         })
         .collect();
     flag_leakage(estimates, &levels, &FrontEndLeakage(front_end));
-    for (est, band) in estimates.iter_mut().zip(front_end.bands()) {
+    for (b, (est, band)) in estimates.iter_mut().zip(front_end.bands()).enumerate() {
         if band.width_hz() < resolution_hz * (1.0 - 1e-9) && !est.has(Flag::NoEnergy) {
             est.withhold(Flag::BelowResolution);
+        }
+        if est
+            .t60_s
+            .is_some_and(|t60| t60 < front_end.shortest_t60_s(b))
+        {
+            est.withhold(Flag::FilterLimited);
         }
     }
     for (est, e) in estimates.iter_mut().zip(estimators) {

@@ -44,6 +44,7 @@ mod pyrato_reference;
 mod regression_channel_panic_isolated;
 mod regression_contradictions;
 mod regression_double_hits;
+mod regression_empty_bands;
 mod regression_foreign_sets;
 mod regression_hostile_inputs;
 mod regression_ifft_wraparound;

@@ -370,6 +370,13 @@ impl FrontEnd for OctaveBankFrontEnd {
         super::bank_resolution(&self.bands, self.hop, self.sample_rate_hz, self.rise_s)
     }
 
+    fn shortest_t60_s(&self, band: usize) -> f64 {
+        // Each band's filter is designed on the band's edges (its −3 dB points).
+        self.bands
+            .get(band)
+            .map_or(0.0, |b| super::BT60_MIN / b.width_hz())
+    }
+
     fn process(&mut self, samples: &[f64], sink: &mut dyn FrameSink) {
         match self.settings.direction {
             FilterDirection::Forward => with_frame_sums(|sums| {
