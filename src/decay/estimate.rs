@@ -447,6 +447,17 @@ pub fn estimate_from_coded_curve(
     if edc.is_empty() || edc[0] <= 0.0 || !edc[0].is_finite() {
         return DecayEstimate::failed(Flag::NoEnergy);
     }
+    // Digital silence at the end — exact zeros, as in a record zero-padded after it was cut, or
+    // a quiet integer recording rounded to 0 — is not a decay that reached −∞ dB: the record
+    // ends at its last frame with energy, and the range checks see that end (a 0.5 s response
+    // padded to 3 s gave D +20 % where the same 0.5 s unpadded gives `too_short`).
+    let live = energies
+        .iter()
+        .rposition(|&e| e != 0.0)
+        .map_or(0, |k| k + 1);
+    let energies = &energies[..live];
+    let edc = &edc[..live.min(edc.len())];
+    let frequencies = &frequencies[..live.min(frequencies.len())];
     let figures = EndFigures::of(energies);
     let noise = noise_floor_pnr_db(energies, &figures);
     // With a noise floor, truncate at Lundeby's intersection time and add the missing tail.

@@ -190,3 +190,40 @@ fn meta_json_as_other_tools_write_it_is_read() {
     assert!(stderr(&o).contains("fs:"), "{}", stderr(&o));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Found the same way: a response cut at 0.5 s and zero-padded to 2 s (as exports pad to a
+/// fixed length) gave D 0.0120 for 0.0100 at 100 Hz (T60 1.1 s, so 0.5 s holds 27 dB of it),
+/// flagged only `nonlinear_decay`, where the same 0.5 s unpadded gives `too_short`: the exact
+/// zeros looked like a decay that reached −∞ dB. The record now ends at its last sample with
+/// energy, padded or not.
+#[test]
+fn a_record_zero_padded_after_its_cut_is_as_short_as_the_cut() {
+    let dir = fresh_dir("foreign-zero-padded");
+    let ids = ["S1", "S2", "S3"];
+    let cut = (0.5 * FS_HZ) as usize;
+    for (name, padded) in [("padded", true), ("cut", false)] {
+        let set = dir.join(name);
+        write_set(&set, &ids, "time,S1,S2,S3", &[0, 1, 2], true, &|v| {
+            format!("{v:e}")
+        });
+        let text = std::fs::read_to_string(set.join("responses.csv")).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        for (i, line) in lines.iter_mut().enumerate().skip(1 + cut) {
+            *line = format!("{:e},0,0,0", (i - 1) as f64 / FS_HZ);
+        }
+        if !padded {
+            lines.truncate(1 + cut);
+        }
+        std::fs::write(set.join("responses.csv"), lines.join("\n") + "\n").unwrap();
+        // The default 50 Hz bands: 75–125 Hz holds the 100 Hz mode alone.
+        let o = dampscope(&["analyze", set.to_str().unwrap()], b"");
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let text = String::from_utf8_lossy(&o.stdout);
+        let row = text
+            .lines()
+            .find(|l| l.starts_with("S1,") && l.contains(",75.000000,125.000000,"))
+            .unwrap_or_else(|| panic!("no 75–125 Hz row:\n{text}"));
+        assert!(row.ends_with("too_short"), "{name}: {row}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
