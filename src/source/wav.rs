@@ -35,6 +35,22 @@ fn malformed(what: &str, detail: String) -> SourceError {
     }
 }
 
+/// Whether a data chunk's length is what a recorder writes when it does not know the length
+/// (it streams to a pipe): 0 or 0xFFFFFFFF, SoX's 0x7FFFF000 rounded down to whole frames,
+/// arecord's 0x80000000, or any length from 0x7FFFF000 up that is not whole frames. Such data
+/// runs to the end of the input; read as a length, a stream that ended normally was flagged
+/// truncated (and a 24-bit one refused: 0x80000000 is not a multiple of 6 bytes).
+fn is_length_placeholder(len: u32, frame_bytes: u64) -> bool {
+    const SOX_UNKNOWN: u64 = 0x7FFF_F000;
+    let n = u64::from(len);
+    let fb = frame_bytes.max(1);
+    let sox = SOX_UNKNOWN - SOX_UNKNOWN % fb;
+    len == 0
+        || len == u32::MAX
+        || n == sox
+        || (n >= SOX_UNKNOWN && (n % fb != 0 || n == 0x8000_0000))
+}
+
 /// Reads exactly `buf.len()` bytes; a short read is `Truncated` naming `part`.
 fn read_exact_or<R: Read>(
     r: &mut R,
@@ -174,11 +190,8 @@ fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), Sou
                 let (rate, channels, codec) = fmt.ok_or_else(|| {
                     malformed(what, "fmt chunk expected before the data chunk".into())
                 })?;
-                let data_bytes = match len {
-                    0 | u32::MAX => None,
-                    n => Some(u64::from(n)),
-                };
                 let fb = (channels * codec.bytes()) as u64;
+                let data_bytes = (!is_length_placeholder(len, fb)).then_some(u64::from(len));
                 if let Some(n) = data_bytes {
                     if n % fb != 0 {
                         return Err(malformed(

@@ -210,3 +210,56 @@ fn an_frf_csv_on_standard_input_is_refused_not_read_as_time_series() {
         .output();
     assert!(!String::from_utf8_lossy(&out.stderr).contains("FRF CSV"));
 }
+
+/// Found piping WAV streams as recorders write them to a pipe: arecord's header says 0x80000000
+/// data bytes and SoX's 0x7FFFF000 rounded down to whole frames. Read as lengths, a stream that
+/// ended normally was flagged `input_truncated` (exit 3), and a 24-bit stereo one refused (0x80000000
+/// is not a multiple of 6 bytes). They are "unknown length", as 0 and 0xFFFFFFFF are.
+#[test]
+fn recorders_unknown_length_placeholders_are_read_to_the_end() {
+    let fs = 4000u32;
+    let decay = crate::common::decaying_sines(&[(200.0, 0.01, 0.5, 0.0)], f64::from(fs), 2.0);
+    for (bytes_per_sample, placeholder) in [
+        (2u16, 0x8000_0000u32),
+        (3, 0x8000_0000),
+        (2, 0x7FFF_F000),
+        (3, 0x7FFF_F000 - 0x7FFF_F000 % 6),
+    ] {
+        let channels = 2u16;
+        let frame = u32::from(channels * bytes_per_sample);
+        let mut w = Vec::new();
+        w.extend_from_slice(b"RIFF");
+        w.extend_from_slice(&placeholder.wrapping_add(36).to_le_bytes());
+        w.extend_from_slice(b"WAVEfmt ");
+        w.extend_from_slice(&16u32.to_le_bytes());
+        w.extend_from_slice(&1u16.to_le_bytes());
+        w.extend_from_slice(&channels.to_le_bytes());
+        w.extend_from_slice(&fs.to_le_bytes());
+        w.extend_from_slice(&(fs * frame).to_le_bytes());
+        w.extend_from_slice(&(frame as u16).to_le_bytes());
+        w.extend_from_slice(&(8 * bytes_per_sample).to_le_bytes());
+        w.extend_from_slice(b"data");
+        w.extend_from_slice(&placeholder.to_le_bytes());
+        let full_scale = f64::from(1u32 << (8 * bytes_per_sample - 1));
+        for v in &decay {
+            let q = (v * full_scale).round() as i32;
+            for _ in 0..channels {
+                w.extend_from_slice(&q.to_le_bytes()[..bytes_per_sample as usize]);
+            }
+        }
+        let o = dampscope(&["analyze", "-"], &w);
+        let out = String::from_utf8_lossy(&o.stdout);
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{bytes_per_sample} bytes, {placeholder:#x}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!out.contains("input_truncated"), "{out}");
+        let row = out
+            .lines()
+            .find(|l| l.starts_with("ch0,") && l.contains(",175.000000,225.000000,"))
+            .unwrap();
+        assert!(row.contains(",0.010"), "{placeholder:#x}: {row}");
+    }
+}
