@@ -384,8 +384,27 @@ impl Diagnosis {
                 .calibration
                 .map_or(0.0, |c| 100.0 * c.frequency_sigma_rel),
         );
-        if self.is_clean() {
-            let _ = writeln!(out, "verdict: no missing physics");
+        let rejected = self
+            .families
+            .iter()
+            .find_map(|f| f.kind.strip_suffix(" (rejected: fits worse)"));
+        match (self.is_clean(), rejected) {
+            (true, None) => {
+                let _ = writeln!(out, "verdict: no missing physics");
+            }
+            (true, Some(kind)) => {
+                let _ = writeln!(
+                    out,
+                    "verdict: no missing physics that the model could be updated with: the best candidate, {kind}, was rejected because the model updated with it fits the recordings worse (the mismatch below stays unexplained)"
+                );
+            }
+            (false, Some(kind)) => {
+                let _ = writeln!(
+                    out,
+                    "note: a further candidate, {kind}, was rejected: the model updated with it fits the recordings worse"
+                );
+            }
+            (false, None) => {}
         }
         for f in &self.findings {
             let _ = writeln!(

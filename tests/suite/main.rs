@@ -54,6 +54,7 @@ mod regression_merged_hits;
 mod regression_row_order;
 mod regression_sparse_hits;
 mod regression_two_hits;
+mod regression_worse_updates;
 mod report_fe_single_mode;
 mod report_maps;
 mod report_three_sines;

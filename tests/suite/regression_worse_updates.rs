@@ -1,0 +1,99 @@
+//! Found diagnosing a small plate (1 × 1.5 × 0.01 m, 12 × 18 × 2, pinned on y0 and y1) whose
+//! recordings hold a stiffer region (x 0–0.5, y 0.75–1.25 m, E 100 instead of 70 GPa), from the
+//! same mesh and without noise: `diagnose` returned a `stiffness_change` over almost the whole
+//! plate with confidence 0.97, and the model updated with it fitted worse than the model as
+//! given (frequency RMS 2.40 → 9.03 Hz, calibrated 0.24 → 0.46 Hz, FRF error 0.69 → 1.27). An
+//! update that fits worse is no longer returned, and the verdict says that a mismatch remains.
+
+use crate::common::{fresh_dir, run_dampscope as dampscope};
+
+const NOMINAL: &str = r#"
+[plate]
+lx = 1.0
+ly = 1.5
+thickness = 0.01
+[mesh]
+nx = 12
+ny = 18
+nz = 2
+[material]
+youngs_modulus = 7.0e10
+poisson = 0.34
+density = 2700.0
+loss_factor = 0.02
+[supports]
+pinned_edges = ["y0", "y1"]
+[excitation]
+x = 0.0833333333333
+y = 0.0833333333333
+dir = "z"
+force = 1.0
+[output]
+fmax = 500.0
+df = 0.5
+sensors = { nx = 7, ny = 10 }
+"#;
+
+const STIFFER_REGION: &str = r#"
+[[patch]]
+x = [0.0, 0.5]
+y = [0.75, 1.25]
+youngs_modulus = 1.0e11
+"#;
+
+#[test]
+fn an_update_that_fits_worse_is_not_returned() {
+    let dir = fresh_dir("worse-update");
+    let (nominal, truth, set, out) = (
+        dir.join("nominal.toml"),
+        dir.join("truth.toml"),
+        dir.join("set"),
+        dir.join("out"),
+    );
+    std::fs::write(&nominal, NOMINAL).unwrap();
+    std::fs::write(&truth, format!("{NOMINAL}{STIFFER_REGION}")).unwrap();
+    let o = dampscope(
+        &[
+            "simulate",
+            "--model",
+            truth.to_str().unwrap(),
+            "--out",
+            set.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = dampscope(
+        &[
+            "diagnose",
+            set.to_str().unwrap(),
+            "--model",
+            nominal.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        b"",
+    );
+    let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
+            .unwrap();
+    let fit = |when: &str, key: &str| json["fit"][when][key].as_f64().unwrap();
+    let key = "frequency_rms_calibrated_hz";
+    assert!(
+        fit("after", key) <= 1.1 * fit("before", key) + 1e-9,
+        "the returned update fits worse: {}\n{stdout}",
+        json["fit"]
+    );
+    // The mismatch is real (2.4 Hz): an empty list of findings must not read as a clean bill.
+    assert!(fit("before", "frequency_rms_hz") > 1.0, "{}", json["fit"]);
+    let findings = json["findings"].as_array().unwrap();
+    if findings.is_empty() {
+        assert!(
+            !stdout.contains("verdict: no missing physics\n") && stdout.contains("rejected"),
+            "{stdout}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
