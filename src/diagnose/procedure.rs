@@ -80,6 +80,21 @@ pub enum DiagnoseError {
     /// The model cannot be solved.
     #[error("the model: {0}")]
     Model(#[from] SimError),
+    /// A recording set's sensor lies outside the model's plate (the model's mesh would move it
+    /// onto the nearest edge: a silent mislabel, or positions in other units).
+    #[error("sensor {id} at ({x_m}, {y_m}) m: expected a position on the model's plate, 0..{lx_m} × 0..{ly_m} m (positions in metres, plate coordinates: docs/FORMATS.md §1)")]
+    SensorOffPlate {
+        /// The sensor's id.
+        id: String,
+        /// Its position, m.
+        x_m: f64,
+        /// Its position, m.
+        y_m: f64,
+        /// The plate's length along x, m.
+        lx_m: f64,
+        /// The plate's length along y, m.
+        ly_m: f64,
+    },
     /// Too little evidence.
     #[error("expected at least {expected} modes paired with the model, got {got}")]
     TooFewPairs {
@@ -291,6 +306,21 @@ pub fn diagnose_with_progress(
     settings: &DiagnoseSettings,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Diagnosis, DiagnoseError> {
+    let (lx_m, ly_m) = (model.plate.lx, model.plate.ly);
+    let slack_m = 1e-6 * lx_m.max(ly_m);
+    let on_plate = |v: f64, l: f64| (-slack_m..=l + slack_m).contains(&v);
+    if let Some(s) = sensors
+        .iter()
+        .find(|s| !(on_plate(s.x_m, lx_m) && on_plate(s.y_m, ly_m)))
+    {
+        return Err(DiagnoseError::SensorOffPlate {
+            id: s.id.clone(),
+            x_m: s.x_m,
+            y_m: s.y_m,
+            lx_m,
+            ly_m,
+        });
+    }
     // Every candidate model shares the mesh: keep its factorisations for the run.
     let _factors = crate::sim::reuse::scope();
     progress("identifying the recordings' modes");

@@ -201,8 +201,9 @@ pub enum ModalError {
         /// Its length.
         got: usize,
     },
-    /// The frequency range is empty or beyond the Nyquist frequency.
-    #[error("frequency range {fmin_hz}..{fmax_hz} Hz: expected 0 ≤ fmin < fmax < {nyquist_hz} Hz (Nyquist)")]
+    /// The frequency range is empty, or its top plus the sub-bands' guard reaches the Nyquist
+    /// frequency (a short record widens the sub-bands, and their guard with them).
+    #[error("frequency range {fmin_hz}..{fmax_hz} Hz: expected 0 ≤ fmin < fmax and fmax + {guard_hz:.1} Hz (the guard of sub-bands up to {width_hz:.1} Hz wide; short records widen them, this one is {record_s:.3} s) below {nyquist_hz} Hz (Nyquist): lower --fmax or give a longer record")]
     Range {
         /// Requested lower limit.
         fmin_hz: f64,
@@ -210,6 +211,12 @@ pub enum ModalError {
         fmax_hz: f64,
         /// Half the sample rate.
         nyquist_hz: f64,
+        /// The widest sub-band's guard above fmax, Hz.
+        guard_hz: f64,
+        /// The widest sub-band, Hz.
+        width_hz: f64,
+        /// The record's length, s.
+        record_s: f64,
     },
     /// A setting out of its domain.
     #[error("{name}: expected {expected}, got {got}")]
@@ -232,6 +239,9 @@ fn check_range(rec: &Recordings, s: &ModalSettings, plan: &SubBandPlan) -> Resul
             fmin_hz: s.fmin_hz,
             fmax_hz: s.fmax_hz,
             nyquist_hz,
+            guard_hz: guard,
+            width_hz: plan.max_width_hz,
+            record_s: rec.channels.first().map_or(0, Vec::len) as f64 / rec.fs_hz,
         });
     }
     Ok(())

@@ -172,6 +172,18 @@ pub fn memory_estimate(model: &Model, held_outputs: bool) -> f64 {
         }
 }
 
+/// Refuses a force that reaches no free dof — zero, or applied on a pinned edge's line — whose
+/// simulation is a recording set of exact zeros (it was written with exit 0).
+fn check_force(sys: &FeSystem) -> Result<(), SimError> {
+    if sys.force.iter().all(|&f| f == 0.0) {
+        return Err(SimError::InvalidValue {
+            key: "excitation".into(),
+            message: "expected a force on the free structure, got none: the force is 0 or acts on a pinned edge only (every response would be zero)".into(),
+        });
+    }
+    Ok(())
+}
+
 /// Refuses `model` when `estimate` bytes exceed the process memory budget.
 fn check_budget(model: &Model, estimate: f64) -> Result<(), SimError> {
     super::limits::check_budget(model, "simulating", estimate)
@@ -183,6 +195,7 @@ pub fn simulate(model: &Model, opts: &SimulateOptions) -> Result<SimulationResul
     check_budget(model, memory_estimate(model, true))?;
     let t0 = Instant::now();
     let sys = assemble(model)?;
+    check_force(&sys)?;
     let assembly_s = t0.elapsed().as_secs_f64();
     let mut r = simulate_system(&sys, None, model.output.fmax, model.output.df, opts)?;
     r.timings.assembly_s = assembly_s;
@@ -263,6 +276,7 @@ pub fn simulate_stream(
     check_budget(model, memory_estimate(model, held))?;
     let t0 = Instant::now();
     let sys = assemble(model)?;
+    check_force(&sys)?;
     let assembly_s = t0.elapsed().as_secs_f64();
     let (fmax_hz, df_hz) = (model.output.fmax, model.output.df);
     let pb = progress_bar(opts.progress, 3);

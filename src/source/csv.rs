@@ -21,7 +21,9 @@
 
 use std::io::{BufRead, Read};
 
-use super::csv_text::{detect_delim, parse_fs_comment, printed_resolution, split_fields};
+use super::csv_text::{
+    detect_delim, names_the_channels, parse_fs_comment, printed_resolution, split_fields,
+};
 use super::raw::check_fs;
 use super::{Block, SignalInfo, Source, SourceError};
 
@@ -136,7 +138,12 @@ impl<R: BufRead + Send> CsvSource<R> {
             Line::End => return Err(SourceError::Empty { what: s.what }),
         };
         s.delim = detect_delim(&first);
-        let fields = split_fields(&first, s.delim);
+        let mut fields = split_fields(&first, s.delim);
+        // A separator ending every line (`time,s0,s1,`) closes the last field; it does not
+        // open a nameless channel of empty cells.
+        if fields.len() > 1 && fields.last().is_some_and(|f| f.is_empty()) {
+            fields.pop();
+        }
         s.n_cols = fields.len();
         let numeric = fields.iter().all(|f| f.parse::<f64>().is_ok());
         if numeric && !names_the_channels(&fields, ids) {
@@ -403,7 +410,11 @@ impl<R: BufRead + Send> CsvSource<R> {
     /// Parses one data row into its numbers (time first when there is a time column).
     fn parse_row(&mut self, line: &str, newline: bool) -> Result<Vec<f64>, SourceError> {
         let mut row = Vec::with_capacity(self.n_cols);
-        for (k, field) in split_fields(line, self.delim).iter().enumerate() {
+        let mut fields = split_fields(line, self.delim);
+        if fields.len() == self.n_cols + 1 && fields.last().is_some_and(|f| f.is_empty()) {
+            fields.pop();
+        }
+        for (k, field) in fields.iter().enumerate() {
             let f: &str = field;
             let is_channel = !(self.time_column && k == 0);
             if !is_channel {
@@ -492,22 +503,6 @@ impl<R: BufRead + Send> CsvSource<R> {
         }
         Ok(())
     }
-}
-
-/// Whether a first line's fields are exactly `ids`, in any order, after an optional time column.
-fn names_the_channels(fields: &[std::borrow::Cow<'_, str>], ids: &[String]) -> bool {
-    let channels = match fields.first() {
-        Some(f) if matches!(f.to_ascii_lowercase().as_str(), "time" | "t") => &fields[1..],
-        _ => fields,
-    };
-    if ids.is_empty() || channels.len() != ids.len() {
-        return false;
-    }
-    let mut a: Vec<&str> = channels.iter().map(|f| f.as_ref()).collect();
-    let mut b: Vec<&str> = ids.iter().map(String::as_str).collect();
-    a.sort_unstable();
-    b.sort_unstable();
-    a == b
 }
 
 /// Relative tolerance within which two stated sample rates agree (the time column's own

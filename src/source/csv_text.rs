@@ -57,6 +57,22 @@ pub(super) fn split_fields(line: &str, delim: char) -> Vec<Cow<'_, str>> {
     }
 }
 
+/// Whether a first line's fields are exactly `ids`, in any order, after an optional time column.
+pub(super) fn names_the_channels(fields: &[Cow<'_, str>], ids: &[String]) -> bool {
+    let channels = match fields.first() {
+        Some(f) if matches!(f.to_ascii_lowercase().as_str(), "time" | "t") => &fields[1..],
+        _ => fields,
+    };
+    if ids.is_empty() || channels.len() != ids.len() {
+        return false;
+    }
+    let mut a: Vec<&str> = channels.iter().map(|f| f.as_ref()).collect();
+    let mut b: Vec<&str> = ids.iter().map(String::as_str).collect();
+    a.sort_unstable();
+    b.sort_unstable();
+    a == b
+}
+
 /// The sample rate of a `# fs=51200` or `# fs: 51200` comment (anything may follow the number).
 pub(super) fn parse_fs_comment(comment: &str) -> Option<f64> {
     let rest = comment.trim_start_matches('#').trim_start();

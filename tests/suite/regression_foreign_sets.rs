@@ -227,3 +227,21 @@ fn a_record_zero_padded_after_its_cut_is_as_short_as_the_cut() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Found piping CSV that ends every line with its separator (`time,s0,s1,`): a third,
+/// nameless channel of empty cells appeared, flagged `non_finite_input` in every band, and the
+/// run exited 3 ("channel(s) : no estimates").
+#[test]
+fn a_separator_ending_every_line_opens_no_channel() {
+    let (a, b) = (channel(0), channel(1));
+    let mut text = String::from("time,s0,s1,\n");
+    for i in 0..a.len() {
+        text.push_str(&format!("{:e},{:e},{:e},\n", i as f64 / FS_HZ, a[i], b[i]));
+    }
+    let o = dampscope(&["analyze", "-", "--bands", "octave"], text.as_bytes());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let mut table = csv::Reader::from_reader(o.stdout.as_slice());
+    let channels: std::collections::BTreeSet<String> =
+        table.records().map(|r| r.unwrap()[0].to_string()).collect();
+    assert_eq!(channels.into_iter().collect::<Vec<_>>(), ["s0", "s1"]);
+}

@@ -4,6 +4,7 @@
 //! plate with confidence 0.97, and the model updated with it fitted worse than the model as
 //! given (frequency RMS 2.40 → 9.03 Hz, calibrated 0.24 → 0.46 Hz, FRF error 0.69 → 1.27). An
 //! update that fits worse is no longer returned, and the verdict says that a mismatch remains.
+//! (Also here: what else probing `diagnose` with small hand-written plates found.)
 
 use crate::common::{fresh_dir, run_dampscope as dampscope};
 
@@ -94,6 +95,80 @@ fn an_update_that_fits_worse_is_not_returned() {
             !stdout.contains("verdict: no missing physics\n") && stdout.contains("rejected"),
             "{stdout}"
         );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Found the same way: a recording set whose sensor lay outside the model's plate (x = 1.25 m
+/// on a 1 m plate, or positions written in millimetres) was diagnosed without a word, each
+/// such sensor moved onto the nearest edge of the mesh. It is now an error naming the sensor.
+#[test]
+fn a_sensor_off_the_models_plate_is_an_error_naming_it() {
+    let dir = fresh_dir("off-plate-sensor");
+    let (nominal, set) = (dir.join("nominal.toml"), dir.join("set"));
+    std::fs::write(&nominal, NOMINAL).unwrap();
+    let o = dampscope(
+        &[
+            "simulate",
+            "--model",
+            nominal.to_str().unwrap(),
+            "--out",
+            set.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let sensors = std::fs::read_to_string(set.join("sensors.csv")).unwrap();
+    let mut lines: Vec<String> = sensors.lines().map(String::from).collect();
+    let header: Vec<&str> = lines[0].split(',').collect();
+    let x_col = header.iter().position(|h| *h == "x").unwrap();
+    let mut cells: Vec<String> = lines[3].split(',').map(String::from).collect();
+    let id = cells[header.iter().position(|h| *h == "id").unwrap()].clone();
+    cells[x_col] = "1.25".into();
+    lines[3] = cells.join(",");
+    std::fs::write(set.join("sensors.csv"), lines.join("\n") + "\n").unwrap();
+    let o = dampscope(
+        &[
+            "diagnose",
+            set.to_str().unwrap(),
+            "--model",
+            nominal.to_str().unwrap(),
+            "--out",
+            dir.join("out").to_str().unwrap(),
+        ],
+        b"",
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(e.contains(&format!("sensor {id} at (1.25,")), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Found the same way: a model excited on a pinned edge (or with force 0) simulated a recording
+/// set of exact zeros, exit 0, no warning. It is now refused, naming the excitation.
+#[test]
+fn an_excitation_that_reaches_no_free_dof_is_refused() {
+    let dir = fresh_dir("dead-excitation");
+    for (name, from, to) in [
+        ("on-edge", "y = 0.0833333333333", "y = 0.0"),
+        ("zero", "force = 1.0", "force = 0.0"),
+    ] {
+        let model = dir.join(format!("{name}.toml"));
+        assert!(NOMINAL.contains(from));
+        std::fs::write(&model, NOMINAL.replacen(from, to, 1)).unwrap();
+        let o = dampscope(
+            &[
+                "simulate",
+                "--model",
+                model.to_str().unwrap(),
+                "--out",
+                dir.join(name).to_str().unwrap(),
+            ],
+            b"",
+        );
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{name}: {e}");
+        assert!(e.contains("excitation"), "{name}: {e}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
