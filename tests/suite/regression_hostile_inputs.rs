@@ -28,8 +28,22 @@ fn clean_failure(args: &[&str], stdin: &[u8], codes: &[i32], words: &[&str]) -> 
     took
 }
 
-/// A WAV header (PCM 16-bit) with the given channel count and claimed data size, then `data`.
+/// A WAV header (PCM 16-bit, 4000 Hz) with the given channel count and claimed data size, then
+/// `data`.
 fn wav_header(channels: u16, claimed_data_bytes: u32, data: &[u8]) -> Vec<u8> {
+    pcm_wav(channels, 2, 4000, claimed_data_bytes, data)
+}
+
+/// A PCM WAV header of `bytes_per_sample`-byte samples at `fs` Hz claiming
+/// `claimed_data_bytes`, then `data`.
+fn pcm_wav(
+    channels: u16,
+    bytes_per_sample: u16,
+    fs: u32,
+    claimed_data_bytes: u32,
+    data: &[u8],
+) -> Vec<u8> {
+    let frame = u32::from(channels) * u32::from(bytes_per_sample);
     let mut w = Vec::new();
     w.extend_from_slice(b"RIFF");
     w.extend_from_slice(&claimed_data_bytes.saturating_add(36).to_le_bytes());
@@ -37,10 +51,10 @@ fn wav_header(channels: u16, claimed_data_bytes: u32, data: &[u8]) -> Vec<u8> {
     w.extend_from_slice(&16u32.to_le_bytes());
     w.extend_from_slice(&1u16.to_le_bytes());
     w.extend_from_slice(&channels.to_le_bytes());
-    w.extend_from_slice(&4000u32.to_le_bytes());
-    w.extend_from_slice(&(8000 * u32::from(channels)).to_le_bytes());
-    w.extend_from_slice(&(2 * channels as u32).min(u16::MAX as u32).to_le_bytes()[..2]);
-    w.extend_from_slice(&16u16.to_le_bytes());
+    w.extend_from_slice(&fs.to_le_bytes());
+    w.extend_from_slice(&(fs * frame).to_le_bytes());
+    w.extend_from_slice(&frame.min(u16::MAX as u32).to_le_bytes()[..2]);
+    w.extend_from_slice(&(8 * bytes_per_sample).to_le_bytes());
     w.extend_from_slice(b"data");
     w.extend_from_slice(&claimed_data_bytes.to_le_bytes());
     w.extend_from_slice(data);
@@ -226,27 +240,15 @@ fn recorders_unknown_length_placeholders_are_read_to_the_end() {
         (3, 0x7FFF_F000 - 0x7FFF_F000 % 6),
     ] {
         let channels = 2u16;
-        let frame = u32::from(channels * bytes_per_sample);
-        let mut w = Vec::new();
-        w.extend_from_slice(b"RIFF");
-        w.extend_from_slice(&placeholder.wrapping_add(36).to_le_bytes());
-        w.extend_from_slice(b"WAVEfmt ");
-        w.extend_from_slice(&16u32.to_le_bytes());
-        w.extend_from_slice(&1u16.to_le_bytes());
-        w.extend_from_slice(&channels.to_le_bytes());
-        w.extend_from_slice(&fs.to_le_bytes());
-        w.extend_from_slice(&(fs * frame).to_le_bytes());
-        w.extend_from_slice(&(frame as u16).to_le_bytes());
-        w.extend_from_slice(&(8 * bytes_per_sample).to_le_bytes());
-        w.extend_from_slice(b"data");
-        w.extend_from_slice(&placeholder.to_le_bytes());
         let full_scale = f64::from(1u32 << (8 * bytes_per_sample - 1));
+        let mut data = Vec::new();
         for v in &decay {
             let q = (v * full_scale).round() as i32;
             for _ in 0..channels {
-                w.extend_from_slice(&q.to_le_bytes()[..bytes_per_sample as usize]);
+                data.extend_from_slice(&q.to_le_bytes()[..bytes_per_sample as usize]);
             }
         }
+        let w = pcm_wav(channels, bytes_per_sample, fs, placeholder, &data);
         let o = dampscope(&["analyze", "-"], &w);
         let out = String::from_utf8_lossy(&o.stdout);
         assert_eq!(

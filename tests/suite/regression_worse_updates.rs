@@ -6,6 +6,8 @@
 //! update that fits worse is no longer returned, and the verdict says that a mismatch remains.
 //! (Also here: what else probing `diagnose` with small hand-written plates found.)
 
+use std::path::Path;
+
 use crate::common::{fresh_dir, run_dampscope as dampscope};
 
 const NOMINAL: &str = r#"
@@ -42,6 +44,31 @@ y = [0.75, 1.25]
 youngs_modulus = 1.0e11
 "#;
 
+/// `dampscope simulate --model MODEL --out SET`, which must succeed.
+fn simulate(model: &Path, set: &Path) {
+    let o = dampscope(
+        &[
+            "simulate",
+            "--model",
+            model.to_str().unwrap(),
+            "--out",
+            set.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// `dampscope diagnose SET --model MODEL --out OUT`.
+fn diagnose(set: &Path, model: &Path, out: &Path) -> std::process::Output {
+    let (set, model, out) = (
+        set.to_str().unwrap(),
+        model.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    dampscope(&["diagnose", set, "--model", model, "--out", out], b"")
+}
+
 #[test]
 fn an_update_that_fits_worse_is_not_returned() {
     let dir = fresh_dir("worse-update");
@@ -53,28 +80,8 @@ fn an_update_that_fits_worse_is_not_returned() {
     );
     std::fs::write(&nominal, NOMINAL).unwrap();
     std::fs::write(&truth, format!("{NOMINAL}{STIFFER_REGION}")).unwrap();
-    let o = dampscope(
-        &[
-            "simulate",
-            "--model",
-            truth.to_str().unwrap(),
-            "--out",
-            set.to_str().unwrap(),
-        ],
-        b"",
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = dampscope(
-        &[
-            "diagnose",
-            set.to_str().unwrap(),
-            "--model",
-            nominal.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ],
-        b"",
-    );
+    simulate(&truth, &set);
+    let o = diagnose(&set, &nominal, &out);
     let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let json: serde_json::Value =
@@ -107,17 +114,7 @@ fn a_sensor_off_the_models_plate_is_an_error_naming_it() {
     let dir = fresh_dir("off-plate-sensor");
     let (nominal, set) = (dir.join("nominal.toml"), dir.join("set"));
     std::fs::write(&nominal, NOMINAL).unwrap();
-    let o = dampscope(
-        &[
-            "simulate",
-            "--model",
-            nominal.to_str().unwrap(),
-            "--out",
-            set.to_str().unwrap(),
-        ],
-        b"",
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    simulate(&nominal, &set);
     let sensors = std::fs::read_to_string(set.join("sensors.csv")).unwrap();
     let mut lines: Vec<String> = sensors.lines().map(String::from).collect();
     let header: Vec<&str> = lines[0].split(',').collect();
@@ -127,17 +124,7 @@ fn a_sensor_off_the_models_plate_is_an_error_naming_it() {
     cells[x_col] = "1.25".into();
     lines[3] = cells.join(",");
     std::fs::write(set.join("sensors.csv"), lines.join("\n") + "\n").unwrap();
-    let o = dampscope(
-        &[
-            "diagnose",
-            set.to_str().unwrap(),
-            "--model",
-            nominal.to_str().unwrap(),
-            "--out",
-            dir.join("out").to_str().unwrap(),
-        ],
-        b"",
-    );
+    let o = diagnose(&set, &nominal, &dir.join("out"));
     let e = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{e}");
     assert!(e.contains(&format!("sensor {id} at (1.25,")), "{e}");
