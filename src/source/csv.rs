@@ -36,6 +36,8 @@ enum Line {
     Data(String, bool),
     /// End of the stream.
     End,
+    /// The writer paused with rows of this block already read ([`CsvSource::waking_on_pause`]).
+    Paused,
 }
 
 /// A [`Source`] streaming CSV text row by row (never the whole file in memory).
@@ -69,6 +71,10 @@ pub struct CsvSource<R: BufRead + Send> {
     frames_read: u64,
     done: bool,
     buf: Vec<u8>,
+    /// `buf` holds the start of a line whose rest had not arrived when the writer paused.
+    partial: bool,
+    /// Set while a pause would hand out what was read ([`CsvSource::waking_on_pause`]).
+    pause_armed: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
 }
 
 impl<R: BufRead + Send> CsvSource<R> {
@@ -82,7 +88,19 @@ impl<R: BufRead + Send> CsvSource<R> {
         what: impl Into<String>,
         fs_hz: Option<f64>,
     ) -> Result<Self, SourceError> {
-        Self::open(reader, what.into(), fs_hz, &[])
+        Self::open(reader, what.into(), fs_hz, &[], None)
+    }
+
+    /// [`CsvSource::new`] for a stream read through a [`super::pipe::PausingReader`] whose flag
+    /// is `armed`: when the writer pauses, the rows read so far are handed out in a block not
+    /// yet full (and the rate is taken from the rows at hand), as raw and WAV streams do.
+    pub(crate) fn waking_on_pause(
+        reader: R,
+        what: impl Into<String>,
+        fs_hz: Option<f64>,
+        armed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    ) -> Result<Self, SourceError> {
+        Self::open(reader, what.into(), fs_hz, &[], Some(armed))
     }
 
     /// [`CsvSource::new`] for input whose channels are known by name: a first line holding
@@ -96,7 +114,7 @@ impl<R: BufRead + Send> CsvSource<R> {
         fs_hz: Option<f64>,
         ids: &[String],
     ) -> Result<Self, SourceError> {
-        Self::open(reader, what.into(), fs_hz, ids)
+        Self::open(reader, what.into(), fs_hz, ids, None)
     }
 
     fn open(
@@ -104,6 +122,7 @@ impl<R: BufRead + Send> CsvSource<R> {
         what: String,
         fs_hz: Option<f64>,
         ids: &[String],
+        pause_armed: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
     ) -> Result<Self, SourceError> {
         if let Some(fs) = fs_hz {
             check_fs(&what, fs)?;
@@ -132,10 +151,12 @@ impl<R: BufRead + Send> CsvSource<R> {
             frames_read: 0,
             done: false,
             buf: Vec::new(),
+            partial: false,
+            pause_armed,
         };
         let first = match s.next_line()? {
             Line::Data(l, _) => l,
-            Line::End => return Err(SourceError::Empty { what: s.what }),
+            Line::End | Line::Paused => return Err(SourceError::Empty { what: s.what }),
         };
         s.delim = detect_delim(&first);
         let mut fields = split_fields(&first, s.delim);
@@ -223,6 +244,7 @@ impl<R: BufRead + Send> CsvSource<R> {
                         return Ok(());
                     }
                 },
+                Ok(Line::Paused) => return Ok(()),
                 Ok(Line::End) => {
                     return Err(self.malformed(format!(
                         "{} rows of {} columns without a header: dampscope reads one sample per row and one channel per column, so this looks transposed ({} channels of {} samples?); transpose it or add a header naming the channels (docs/FORMATS.md §1)",
@@ -250,6 +272,8 @@ impl<R: BufRead + Send> CsvSource<R> {
         let mut res = Vec::new();
         let mut stop = None;
         while self.queued.len() < ahead {
+            // Two rows give a rate: a writer that pauses after them is not kept waiting.
+            self.arm_pause(self.queued.len() >= 2);
             match self.next_line() {
                 Ok(Line::Data(l, nl)) => match self.parse_row(&l, nl) {
                     Ok(row) => {
@@ -261,13 +285,14 @@ impl<R: BufRead + Send> CsvSource<R> {
                         break;
                     }
                 },
-                Ok(Line::End) => break,
+                Ok(Line::End | Line::Paused) => break,
                 Err(e) => {
                     stop = Some(e);
                     break;
                 }
             }
         }
+        self.arm_pause(false);
         let first_line = self.line_no + 1 - self.queued.len() - usize::from(stop.is_some());
         if self.queued.len() >= 2 {
             let (t0, t1) = (self.queued[0][0], self.queued[1][0]);
@@ -356,6 +381,12 @@ impl<R: BufRead + Send> CsvSource<R> {
         self
     }
 
+    fn arm_pause(&self, on: bool) {
+        if let Some(a) = &self.pause_armed {
+            a.store(on, std::sync::atomic::Ordering::Relaxed);
+        }
+    }
+
     fn malformed(&self, detail: String) -> SourceError {
         SourceError::Malformed {
             what: self.what.clone(),
@@ -367,20 +398,33 @@ impl<R: BufRead + Send> CsvSource<R> {
     /// The next non-blank, non-comment line (comments are scanned for `fs=`).
     fn next_line(&mut self) -> Result<Line, SourceError> {
         loop {
-            self.buf.clear();
-            let n = (&mut self.reader)
-                .take(MAX_LINE_BYTES)
-                .read_until(b'\n', &mut self.buf)
-                .map_err(|e| SourceError::Io {
-                    what: self.what.clone(),
-                    source: e,
-                })?;
-            if n == 0 {
+            if !self.partial {
+                self.buf.clear();
+            }
+            self.partial = false;
+            let room = MAX_LINE_BYTES.saturating_sub(self.buf.len() as u64);
+            let read = (&mut self.reader)
+                .take(room)
+                .read_until(b'\n', &mut self.buf);
+            let n = match read {
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    self.partial = !self.buf.is_empty();
+                    return Ok(Line::Paused);
+                }
+                Err(e) => {
+                    return Err(SourceError::Io {
+                        what: self.what.clone(),
+                        source: e,
+                    })
+                }
+            };
+            if self.buf.is_empty() {
                 return Ok(Line::End);
             }
             self.line_no += 1;
             let newline = self.buf.last() == Some(&b'\n');
-            if !newline && n as u64 == MAX_LINE_BYTES {
+            if !newline && n as u64 == room {
                 return Err(self.malformed(format!(
                     "line {}: expected a line of at most {MAX_LINE_BYTES} bytes, got a longer one",
                     self.line_no
@@ -544,6 +588,7 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
                 if self.done {
                     break;
                 }
+                self.arm_pause(got > 0);
                 let parsed = match self.next_line() {
                     Ok(Line::Data(l, nl)) => self.parse_row(&l, nl).and_then(|row| {
                         if self.check_time {
@@ -555,6 +600,7 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
                         self.done = true;
                         break;
                     }
+                    Ok(Line::Paused) => break,
                     Err(e) => Err(e),
                 };
                 match parsed {
@@ -580,6 +626,7 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
             }
             got += 1;
         }
+        self.arm_pause(false);
         self.frames_read += got as u64;
         if got == 0 {
             return super::end_of_input(&mut self.pending, self.frames_read, &self.what);

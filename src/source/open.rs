@@ -278,8 +278,8 @@ fn open_stream_watched<R: Read + Send + 'static>(
                 .into(),
         });
     }
-    let stream = BufReader::new(Cursor::new(head).chain(reader));
     let source: Box<dyn Source> = if is_wav {
+        let stream = BufReader::new(Cursor::new(head).chain(reader));
         let wav = WavSource::new(stream, what)?;
         check_header_rate(what, &wav, opts)?;
         #[cfg(unix)]
@@ -289,6 +289,15 @@ fn open_stream_watched<R: Read + Send + 'static>(
         };
         Box::new(wav)
     } else {
+        #[cfg(unix)]
+        if let Some(fd) = pause_fd {
+            let (watched, armed) = super::pipe::PausingReader::new(reader, fd);
+            let stream = BufReader::new(Cursor::new(head).chain(watched));
+            let csv = CsvSource::waking_on_pause(stream, what, opts.fs_hz, armed)?;
+            check_channels(what, &csv, opts)?;
+            return Ok(Box::new(csv));
+        }
+        let stream = BufReader::new(Cursor::new(head).chain(reader));
         Box::new(CsvSource::new(stream, what, opts.fs_hz)?)
     };
     check_channels(what, source.as_ref(), opts)?;

@@ -62,6 +62,42 @@ pub(crate) fn arrives_within(fd: i32, ms: i32) -> bool {
     }
 }
 
+/// A reader that, while its flag is set, answers a read that would wait longer than
+/// [`STREAM_PAUSE_MS`] for the writer with `WouldBlock` instead of waiting: a line-by-line
+/// source ([`super::csv::CsvSource`]) sets the flag once a block holds rows, and hands them out
+/// when its writer pauses.
+pub(crate) struct PausingReader<R> {
+    inner: R,
+    fd: i32,
+    armed: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl<R> PausingReader<R> {
+    /// `inner`, whose bytes arrive on descriptor `fd`, and the flag its reader sets.
+    pub(crate) fn new(inner: R, fd: i32) -> (Self, std::sync::Arc<std::sync::atomic::AtomicBool>) {
+        let armed = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        (
+            PausingReader {
+                inner,
+                fd,
+                armed: armed.clone(),
+            },
+            armed,
+        )
+    }
+}
+
+impl<R: std::io::Read> std::io::Read for PausingReader<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        if self.armed.load(std::sync::atomic::Ordering::Relaxed)
+            && !arrives_within(self.fd, STREAM_PAUSE_MS)
+        {
+            return Err(std::io::ErrorKind::WouldBlock.into());
+        }
+        self.inner.read(buf)
+    }
+}
+
 #[cfg(all(test, target_os = "linux"))]
 mod tests {
     use super::*;

@@ -29,19 +29,15 @@ fn decay_55_hz_f32(frames: usize) -> Vec<u8> {
 /// `dampscope analyze -` of one raw f32 channel at [`FS_HZ`], the band around 55 Hz, and
 /// `extra` arguments; standard input and output piped.
 fn analyze_one_channel(extra: &[&str]) -> std::process::Child {
+    let raw = ["--raw", "f32", "--fs", "4000", "--channels", "1"];
+    analyze_piped(&[&raw[..], extra].concat())
+}
+
+/// `dampscope analyze -` of the band around 55 Hz with `args`; standard input and output piped.
+fn analyze_piped(args: &[&str]) -> std::process::Child {
     Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .args([
-            "analyze",
-            "-",
-            "--raw",
-            "f32",
-            "--fs",
-            "4000",
-            "--channels",
-            "1",
-        ])
-        .args(["--band", "52.5:57.5"])
-        .args(extra)
+        .args(["analyze", "-", "--band", "52.5:57.5"])
+        .args(args)
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -232,6 +228,34 @@ fn a_writer_that_waits_for_its_row_gets_it() {
     let row = row.expect("no row while the input was open");
     assert!(row.starts_with("ch0,0,"), "{row}");
     eprintln!("row after {waited:?}");
+}
+
+/// The same as CSV text with a time column. Found probing streams: a CSV stream was not
+/// watched, so a writer that waits got nothing — not even the header — until it closed: the
+/// rate's read-ahead (up to 4096 rows) and each block (4096 rows) waited for rows that were
+/// not coming.
+#[test]
+fn a_csv_writer_that_waits_for_its_row_gets_it() {
+    let samples: Vec<f32> = decay_55_hz_f32(3000)
+        .chunks(4)
+        .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+        .collect();
+    let mut text = String::from("time,ch0\n");
+    for (i, x) in samples.iter().enumerate() {
+        text.push_str(&format!("{:.6},{x:e}\n", i as f64 / FS_HZ));
+    }
+    let mut child = analyze_piped(&["--max-decay-s", "0.5"]);
+    let (rx, reader) = data_rows(child.stdout.take().unwrap());
+    let mut stdin = child.stdin.take().unwrap();
+    stdin.write_all(text.as_bytes()).unwrap();
+    stdin.flush().unwrap();
+    let row = rx.recv_timeout(std::time::Duration::from_secs(10));
+    drop(stdin);
+    let status = child.wait().unwrap();
+    reader.join().unwrap();
+    assert!(status.success(), "exit {status:?}");
+    let row = row.expect("no row while the input was open");
+    assert!(row.starts_with("ch0,0,"), "{row}");
 }
 
 /// The same through a named pipe given by path, as a WAV stream of unknown length (detected
