@@ -178,7 +178,6 @@ pub trait Source: Send {
 // without a single frame is `Empty`, and a call may return fewer frames than asked (the binary
 // sources do so only at the end, so that a stream's blocks are a mapped file's).
 pub mod csv;
-mod csv_text;
 pub mod encoded;
 mod frames;
 pub mod frf;
