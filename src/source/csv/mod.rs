@@ -21,11 +21,9 @@
 
 use std::io::{BufRead, Read};
 
-use text::{
-    detect_delim, names_the_channels, parse_fs_comment, printed_resolution, split_fields,
-};
 use super::raw::check_fs;
 use super::{Block, SignalInfo, Source, SourceError};
+use text::{detect_delim, names_the_channels, parse_fs_comment, printed_resolution, split_fields};
 
 mod text;
 mod time_column;
