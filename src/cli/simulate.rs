@@ -148,8 +148,13 @@ fn frfs_of(
     Ok((fs / n as f64, frfs))
 }
 
+/// The model at `path` (or the reference plate); its mesh's warnings go to stderr.
 fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
-    Ok(Model::load_or_reference(path)?)
+    let model = Model::load_or_reference(path)?;
+    for warning in crate::sim::mesh::Mesh::new(&model).warnings {
+        eprintln!("dampscope: warning: {warning}");
+    }
+    Ok(model)
 }
 
 /// The recording-set pieces of a simulation: sensors (z, mid-plane) and excitation rows.
