@@ -171,7 +171,7 @@ pub struct Output {
 
 /// `output.sensors`: a regular grid or a `sensors.csv` file (FORMATS.md §1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
+#[serde(untagged, try_from = "SensorSpecKeys")]
 pub enum SensorSpec {
     /// `{ nx, ny }`: nx × ny sensors spanning the plate edge to edge.
     Grid {
@@ -185,6 +185,34 @@ pub enum SensorSpec {
         /// Path of the CSV file.
         file: PathBuf,
     },
+}
+
+/// `output.sensors` as written, before it is one of [`SensorSpec`]'s forms: the untagged enum
+/// answered `{ nx = 3 }`, `{ nx = 3.0, ny = 3 }` or `{ files = "s.csv" }` with "data did not
+/// match any variant", and took `{ nx, ny, file }` as a grid, ignoring the file.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SensorSpecKeys {
+    nx: Option<usize>,
+    ny: Option<usize>,
+    file: Option<PathBuf>,
+}
+
+impl TryFrom<SensorSpecKeys> for SensorSpec {
+    type Error = String;
+
+    fn try_from(k: SensorSpecKeys) -> Result<Self, String> {
+        match (k.nx, k.ny, k.file) {
+            (Some(nx), Some(ny), None) => Ok(SensorSpec::Grid { nx, ny }),
+            (None, None, Some(file)) => Ok(SensorSpec::File { file }),
+            (nx, ny, file) => Err(format!(
+                "expected either {{ nx = N, ny = N }} (a grid, whole numbers) or {{ file = \"sensors.csv\" }}, got{}{}{}",
+                nx.map_or(String::new(), |v| format!(" nx = {v}")),
+                ny.map_or(String::new(), |v| format!(" ny = {v}")),
+                file.map_or(String::new(), |f| format!(" file = {f:?}")),
+            )),
+        }
+    }
 }
 
 /// One sensor position.

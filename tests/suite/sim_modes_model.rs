@@ -340,3 +340,27 @@ fn elements_much_wider_than_the_plate_is_thick_are_warned_about() {
     assert!(flat(&small(8, 12, 2)), "250 mm elements on 20 mm");
     assert!(flat(&small(8, 12, 1)), "the same with one layer");
 }
+
+/// Found with hand-written models: `output.sensors` of `{ nx = 3 }`, `{ nx = 3.0, ny = 3 }` or
+/// `{ files = … }` all answered "data did not match any variant of untagged enum SensorSpec",
+/// and `{ nx, ny, file }` was taken as a grid with the file ignored. Each now says what is
+/// expected and what was given.
+#[test]
+fn sensor_specs_that_are_neither_grid_nor_file_say_why() {
+    let r = REFERENCE_PLATE_TOML;
+    let line = r
+        .lines()
+        .find(|l| l.trim_start().starts_with("sensors ="))
+        .expect("the reference plate gives its sensors");
+    let with = |spec: &str| r.replace(line, &format!("sensors = {spec}"));
+    let half = err_of(&with("{ nx = 3 }"));
+    assert!(
+        half.contains("expected either { nx = N, ny = N }") && half.contains("got nx = 3"),
+        "{half}"
+    );
+    let both = err_of(&with("{ nx = 3, ny = 3, file = \"s.csv\" }"));
+    assert!(both.contains("file = \"s.csv\""), "{both}");
+    let typo = err_of(&with("{ files = \"s.csv\" }"));
+    assert!(typo.contains("unknown field `files`"), "{typo}");
+    assert!(!err_of(&with("{ nx = 3.0, ny = 3 }")).contains("untagged"));
+}
