@@ -212,11 +212,21 @@ fn a_slow_writers_pipe_gives_the_files_rows_bit_for_bit() {
 /// open (a reader that waited for the whole block would never give it).
 #[test]
 fn a_writer_that_waits_for_its_row_gets_it() {
-    let bytes = decay_55_hz_f32(3000);
-    let mut child = analyze_one_channel(&["--max-decay-s", "0.5"]);
+    let child = analyze_one_channel(&["--max-decay-s", "0.5"]);
+    let (row, waited) = first_row_with_the_input_open(child, &decay_55_hz_f32(3000));
+    assert!(row.starts_with("ch0,0,"), "{row}");
+    eprintln!("row after {waited:?}");
+}
+
+/// Writes `bytes` to `child`'s standard input and keeps it open until the first data row
+/// arrives (10 s at most); returns that row and how long it took, after the child exited 0.
+fn first_row_with_the_input_open(
+    mut child: std::process::Child,
+    bytes: &[u8],
+) -> (String, std::time::Duration) {
     let (rx, reader) = data_rows(child.stdout.take().unwrap());
     let mut stdin = child.stdin.take().unwrap();
-    stdin.write_all(&bytes).unwrap();
+    stdin.write_all(bytes).unwrap();
     stdin.flush().unwrap();
     let started = std::time::Instant::now();
     let row = rx.recv_timeout(std::time::Duration::from_secs(10));
@@ -225,9 +235,7 @@ fn a_writer_that_waits_for_its_row_gets_it() {
     let status = child.wait().unwrap();
     reader.join().unwrap();
     assert!(status.success(), "exit {status:?}");
-    let row = row.expect("no row while the input was open");
-    assert!(row.starts_with("ch0,0,"), "{row}");
-    eprintln!("row after {waited:?}");
+    (row.expect("no row while the input was open"), waited)
 }
 
 /// The same as CSV text with a time column. Found probing streams: a CSV stream was not
@@ -244,17 +252,8 @@ fn a_csv_writer_that_waits_for_its_row_gets_it() {
     for (i, x) in samples.iter().enumerate() {
         text.push_str(&format!("{:.6},{x:e}\n", i as f64 / FS_HZ));
     }
-    let mut child = analyze_piped(&["--max-decay-s", "0.5"]);
-    let (rx, reader) = data_rows(child.stdout.take().unwrap());
-    let mut stdin = child.stdin.take().unwrap();
-    stdin.write_all(text.as_bytes()).unwrap();
-    stdin.flush().unwrap();
-    let row = rx.recv_timeout(std::time::Duration::from_secs(10));
-    drop(stdin);
-    let status = child.wait().unwrap();
-    reader.join().unwrap();
-    assert!(status.success(), "exit {status:?}");
-    let row = row.expect("no row while the input was open");
+    let child = analyze_piped(&["--max-decay-s", "0.5"]);
+    let (row, _) = first_row_with_the_input_open(child, text.as_bytes());
     assert!(row.starts_with("ch0,0,"), "{row}");
 }
 
