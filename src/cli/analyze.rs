@@ -47,9 +47,7 @@ pub fn prepare(
 ) -> anyhow::Result<PreparedRun> {
     let mut run = args.plan().prepare(source)?;
     run.config.exponential_window_tau_s = window_tau_s;
-    for w in &run.warnings {
-        eprintln!("dampscope: warning: {w}");
-    }
+    super::warn_all(&run.warnings);
     Ok(run)
 }
 

@@ -114,9 +114,7 @@ pub fn run(args: &CompareArgs) -> anyhow::Result<()> {
     let rec = Recordings::from_source(opened.source.as_mut(), MAX_WHOLE_SAMPLES)?;
     let tau = opened.meta.and_then(|m| m.exponential_window_tau_s);
     let comparison = compare(&rec, tau, &args.plan())?;
-    for w in &comparison.warnings {
-        eprintln!("dampscope: warning: {w}");
-    }
+    super::warn_all(&comparison.warnings);
     print!("{}", aligned(&comparison.rows));
     if let Some(dir) = &args.out {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -42,9 +42,7 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
         (None, Some(f)) => ModeRequest::BelowHz(f),
         (None, None) => ModeRequest::BelowHz(model.output.fmax),
     };
-    for warning in crate::sim::mesh::Mesh::new(&model).warnings {
-        eprintln!("warning: {warning}");
-    }
+    super::warn_all(&crate::sim::mesh::Mesh::new(&model).warnings);
     let system = assemble(&model)?;
     let t_assembly = t0.elapsed().as_secs_f64();
     let (modes, report) = lowest_modes_with(&system, request, &EigenOptions::default())?;

@@ -151,9 +151,7 @@ fn frfs_of(
 /// The model at `path` (or the reference plate); its mesh's warnings go to stderr.
 fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
     let model = Model::load_or_reference(path)?;
-    for warning in crate::sim::mesh::Mesh::new(&model).warnings {
-        eprintln!("dampscope: warning: {warning}");
-    }
+    super::warn_all(&crate::sim::mesh::Mesh::new(&model).warnings);
     Ok(model)
 }
 

@@ -13,7 +13,7 @@ use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
 use super::nuisance::discretisation_pattern;
 use super::refine::{self, refine, view_of};
 use super::regions::ModeShares;
-use super::report::{Diagnosis, FamilyScore, Finding, RunnerUp};
+use super::report::{Diagnosis, FamilyScore, Finding, RunnerUp, REJECTED_FITS_WORSE};
 use super::score::{Candidate, Prediction, Scorer, DEFAULT_MODEL_FORM_SIGMA};
 use super::workers::parallel_map;
 use super::{boundary, damping, mass, stiffness, viscoelastic};
@@ -489,7 +489,7 @@ pub fn diagnose_with_progress(
             ));
             families.push(FamilyScore {
                 round,
-                kind: format!("{} (rejected: fits worse)", refined.kind()),
+                kind: format!("{}{REJECTED_FITS_WORSE}", refined.kind()),
                 bic_gain: none - best.bic,
             });
             break;

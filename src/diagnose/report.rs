@@ -387,7 +387,7 @@ impl Diagnosis {
         let rejected = self
             .families
             .iter()
-            .find_map(|f| f.kind.strip_suffix(" (rejected: fits worse)"));
+            .find_map(|f| f.kind.strip_suffix(REJECTED_FITS_WORSE));
         match (self.is_clean(), rejected) {
             (true, None) => {
                 let _ = writeln!(out, "verdict: no missing physics");
@@ -431,6 +431,10 @@ impl Diagnosis {
         out
     }
 }
+
+/// What a [`FamilyScore`]'s kind ends with when the round's best candidate was rejected because
+/// the model updated with it fits the recordings worse.
+pub const REJECTED_FITS_WORSE: &str = " (rejected: fits worse)";
 
 /// Why a local damping map alone would not show a finding of this kind.
 pub fn why_maps_miss(kind: &str) -> &'static str {

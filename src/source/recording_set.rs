@@ -281,23 +281,18 @@ fn read_meta(path: &Path, warnings: &mut Vec<String>) -> Result<RecordingMeta, S
             keys.remove(informative);
         }
     }
-    let mut meta = RecordingMeta::default();
-    macro_rules! take {
-        ($key:literal, $slot:expr) => {
-            if let Some(v) = keys.get($key).cloned() {
-                $slot = serde_json::from_value(v)
-                    .map_err(|e| malformed(path, "json", format!("{}: {e}", $key)))?;
-            }
+    serde_json::from_value(serde_json::Value::Object(keys.clone())).map_err(|e| {
+        // serde's message names the type, not the key: the key is the one that fails alone.
+        let key = keys.iter().find(|(k, v)| {
+            let alone = serde_json::Map::from_iter([((*k).clone(), (*v).clone())]);
+            serde_json::from_value::<RecordingMeta>(serde_json::Value::Object(alone)).is_err()
+        });
+        let detail = match key {
+            Some((k, _)) => format!("{k}: {e}"),
+            None => e.to_string(),
         };
-    }
-    take!("fs", meta.fs);
-    take!("kind", meta.kind);
-    take!("quantity", meta.quantity);
-    take!("unit", meta.unit);
-    take!("snr_db", meta.snr_db);
-    take!("exponential_window_tau_s", meta.exponential_window_tau_s);
-    take!("scale", meta.scale);
-    Ok(meta)
+        malformed(path, "json", detail)
+    })
 }
 
 /// Opens the recording set in `dir`. `responses.wav` wins over `responses.csv`; `meta.json` and

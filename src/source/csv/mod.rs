@@ -23,7 +23,10 @@ use std::io::{BufRead, Read};
 
 use super::raw::check_fs;
 use super::{Block, SignalInfo, Source, SourceError};
-use text::{detect_delim, names_the_channels, parse_fs_comment, printed_resolution, split_fields};
+use text::{
+    detect_delim, is_time_header, names_the_channels, parse_fs_comment, printed_resolution,
+    split_fields,
+};
 
 mod text;
 mod time_column;
@@ -175,7 +178,7 @@ impl<R: BufRead + Send> CsvSource<R> {
             s.check_orientation()?;
         } else {
             let names: Vec<String> = fields.iter().map(|f| f.to_string()).collect();
-            s.time_column = matches!(names[0].to_ascii_lowercase().as_str(), "time" | "t");
+            s.time_column = is_time_header(&names[0]);
             let skip = usize::from(s.time_column);
             s.info.channel_names = names[skip..].to_vec();
             if s.info.channel_names.is_empty() {

@@ -57,10 +57,15 @@ pub(super) fn split_fields(line: &str, delim: char) -> Vec<Cow<'_, str>> {
     }
 }
 
+/// Whether a header field names the time column: `time` or `t`, any case.
+pub(super) fn is_time_header(name: &str) -> bool {
+    matches!(name.to_ascii_lowercase().as_str(), "time" | "t")
+}
+
 /// Whether a first line's fields are exactly `ids`, in any order, after an optional time column.
 pub(super) fn names_the_channels(fields: &[Cow<'_, str>], ids: &[String]) -> bool {
     let channels = match fields.first() {
-        Some(f) if matches!(f.to_ascii_lowercase().as_str(), "time" | "t") => &fields[1..],
+        Some(f) if is_time_header(f) => &fields[1..],
         _ => fields,
     };
     if ids.is_empty() || channels.len() != ids.len() {
