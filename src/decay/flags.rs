@@ -67,6 +67,12 @@ pub enum Flag {
     /// (in an empty band: its response to the onset). No number is given; use a wider band or
     /// the STFT with a short window.
     FilterLimited,
+    /// The recording's bit depth cannot show this band's decay: the band's share of the
+    /// rounding noise (step² / 12 per sample of an integer recording) lies less than the
+    /// range's depth plus the noise margin below its peak ([`crate::decay::quantization`]). An
+    /// undithered recording shows no such floor; its band would read the loud modes' rounding
+    /// error as its decay. No number is given; record louder or with more bits.
+    QuantizationLimited,
     /// The analysis of this channel stopped on an internal error (a bug, reported on stderr);
     /// the other channels were analysed.
     InternalError,
@@ -130,6 +136,7 @@ impl Flag {
             Flag::ClippedHit => "clipped_hit",
             Flag::DoubleHit => "double_hit",
             Flag::FilterLimited => "filter_limited",
+            Flag::QuantizationLimited => "quantization_limited",
             Flag::InternalError => "internal_error",
         }
     }

@@ -13,10 +13,12 @@ pub mod frequency;
 pub mod leakage;
 pub mod lundeby;
 pub mod oracle;
+pub mod quantization;
 pub mod range;
 pub mod regression;
 pub mod restarts;
 pub mod schroeder;
+pub mod settings;
 mod side_by_side;
 
 pub use estimate::{DecayEstimate, Flag};

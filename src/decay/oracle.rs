@@ -3,9 +3,9 @@
 //! ([`super::schroeder::backward_integrate`]). It is the oracle the online estimator is held to,
 //! frame by frame and through the whole chain ([`crate::pipeline::analyze_decay_with`]).
 
-use super::estimate::{estimate_from_curve, EstimateSettings};
+use super::estimate::{estimate_from_coded_curve, EstimateSettings};
 use super::schroeder::{backward_integrate, decay_start_frame};
-use super::{DecayEstimate, DecayEstimator};
+use super::{DecayEstimate, DecayEstimator, FrequencyCoding};
 
 /// Offline Schroeder estimator for one band: O(frames) per estimate, no running sums.
 #[derive(Clone, Debug)]
@@ -15,6 +15,7 @@ pub struct BatchSchroeder {
     settings: EstimateSettings,
     energies: Vec<f64>,
     frequencies_hz: Vec<f64>,
+    floor_energy: f64,
 }
 
 impl BatchSchroeder {
@@ -26,7 +27,18 @@ impl BatchSchroeder {
             settings,
             energies: Vec::new(),
             frequencies_hz: Vec::new(),
+            floor_energy: 0.0,
         }
+    }
+
+    /// As [`super::OnlineSchroeder::with_floor_energy`].
+    pub fn with_floor_energy(mut self, floor_energy: f64) -> Self {
+        self.floor_energy = if floor_energy.is_finite() && floor_energy > 0.0 {
+            floor_energy
+        } else {
+            0.0
+        };
+        self
     }
 }
 
@@ -44,13 +56,15 @@ impl DecayEstimator for BatchSchroeder {
     fn provisional(&self) -> DecayEstimate {
         let start = decay_start_frame(&self.energies);
         let edc = backward_integrate(&self.energies[start..]);
-        estimate_from_curve(
+        estimate_from_coded_curve(
             &edc,
             &self.energies[start..],
             &self.frequencies_hz[start..],
+            FrequencyCoding::Hz,
             self.frame_period_s,
             self.f_center_hz,
             &self.settings,
+            self.floor_energy,
         )
     }
 

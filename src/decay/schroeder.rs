@@ -66,6 +66,8 @@ pub struct OnlineSchroeder {
     frequencies: Vec<f64>,
     coding: FrequencyCoding,
     running: CompensatedSum,
+    /// The band's share of the input's rounding noise per frame (0: none known).
+    floor_energy: f64,
 }
 
 impl OnlineSchroeder {
@@ -79,7 +81,20 @@ impl OnlineSchroeder {
             frequencies: Vec::new(),
             coding: FrequencyCoding::Hz,
             running: CompensatedSum::default(),
+            floor_energy: 0.0,
         }
+    }
+
+    /// The same integrator, told the band's share of the input's rounding noise per frame
+    /// ([`super::quantization::floor_energy`]): its estimates treat it as the noise floor where
+    /// the record shows no higher one. It stays through resets.
+    pub fn with_floor_energy(mut self, floor_energy: f64) -> Self {
+        self.floor_energy = if floor_energy.is_finite() && floor_energy > 0.0 {
+            floor_energy
+        } else {
+            0.0
+        };
+        self
     }
 
     /// EDC at frame `k` (k < frames): Σ_{m ≥ k} e_m, summed backwards with compensation.
@@ -176,6 +191,7 @@ impl OnlineSchroeder {
             self.frame_period_s,
             self.f_center_hz,
             &self.settings,
+            self.floor_energy,
         )
     }
 }

@@ -15,6 +15,17 @@ pub(crate) const OCTAVE_TAG: u64 = 2;
 /// See [`STFT_TAG`].
 pub(crate) const GOYDER_TAG: u64 = 3;
 
+/// See [`STFT_TAG`]: a cascade's white-noise energy ([`impulse_energy`]).
+pub(crate) const IMPULSE_ENERGY_TAG: u64 = 4;
+
+/// [`super::cascade_impulse_energy`] of `sections`, once per process (every channel's bank has
+/// the same bands; a narrow band's response runs for tens of thousands of samples).
+pub(crate) fn impulse_energy(sections: &[[f64; 5]]) -> f64 {
+    let mut key = vec![IMPULSE_ENERGY_TAG];
+    key.extend(sections.iter().flatten().map(|c| c.to_bits()));
+    memoized_flat_gain(FlatGainKey(key), || super::cascade_impulse_energy(sections))
+}
+
 /// Flat gains kept at most (a run asks for a few per pair of bands; beyond, computed anew).
 const FLAT_GAIN_MEMO_ENTRIES: usize = 1 << 16;
 

@@ -192,6 +192,15 @@ pub trait FrontEnd: Send {
         0.0
     }
 
+    /// Mean energy per frame that band `band` receives from white noise of unit variance (one
+    /// unit² per sample), in the units of [`Frame::energy`]; `None` where the front end cannot
+    /// say. A recording's quantization noise (step² / 12 per sample) sets the floor below which
+    /// its bands hold nothing ([`crate::decay::quantization`]).
+    fn white_noise_energy(&self, band: usize) -> Option<f64> {
+        let _ = band;
+        None
+    }
+
     /// Mean of [`FrontEnd::mode_gain`] (stationary, σ = 0) of band `band` over `lo_hz..hi_hz`:
     /// what the band receives from content spread evenly over that range (a diffuse band of a
     /// room response, where a tone at the band's dominant frequency would be the wrong model).
@@ -223,6 +232,32 @@ pub(crate) fn simpson_flat_gain(gain: impl Fn(f64) -> f64, lo_hz: f64, hi_hz: f6
         })
         .sum();
     sum * h / 3.0 / (hi_hz - lo_hz)
+}
+
+/// Σ h[n]² of the impulse response of a cascade of biquads (as [`cascade_power`]): the mean
+/// square its output has for white noise of unit variance. Run until the response has fallen
+/// 200 dB below its peak (at most 2²⁴ samples, far beyond the narrowest band's ringing).
+pub(crate) fn cascade_impulse_energy(sections: &[[f64; 5]]) -> f64 {
+    const MAX_SAMPLES: usize = 1 << 24;
+    const QUIET_SAMPLES: usize = 4096;
+    let mut state = vec![[0.0f64; 4]; sections.len()];
+    let (mut sum, mut peak, mut quiet) = (0.0f64, 0.0f64, 0usize);
+    for n in 0..MAX_SAMPLES {
+        let mut x = if n == 0 { 1.0 } else { 0.0 };
+        for ([b0, b1, b2, a1, a2], [x1, x2, y1, y2]) in sections.iter().zip(&mut state) {
+            let y = b0 * x + b1 * *x1 + b2 * *x2 - a1 * *y1 - a2 * *y2;
+            (*x2, *x1, *y2, *y1) = (*x1, x, *y1, y);
+            x = y;
+        }
+        let e = x * x;
+        sum += e;
+        peak = peak.max(e);
+        quiet = if e < 1e-20 * peak { quiet + 1 } else { 0 };
+        if quiet >= QUIET_SAMPLES {
+            break;
+        }
+    }
+    sum
 }
 
 /// |Π sections(z)|² of a cascade of biquads `(b0 + b1 z⁻¹ + b2 z⁻²) / (1 + a1 z⁻¹ + a2 z⁻²)`

@@ -6,6 +6,7 @@ use super::segment::onset::{OnsetDetector, OnsetEvent, OnsetSettings, RetriggerW
 use super::segment::sample_scan::first_non_finite;
 use super::segment::RETRIGGER_MIN_FREQUENCY_HZ;
 use super::{AnalysisConfig, ResultRow};
+use crate::decay::quantization::floor_energy;
 use crate::decay::{DecayEstimate, DecayEstimator, Flag};
 use crate::frontend::simd::Isa;
 use crate::frontend::FrontEnd;
@@ -105,6 +106,21 @@ pub const BAND_STATE_BYTES: usize = std::mem::size_of::<crate::decay::OnlineSchr
     + std::mem::size_of::<ResultRow>()
     + 64;
 
+/// Per band of `front_end`, the energy per frame of rounding to `step` (empty without a step,
+/// 0 for a band whose front end cannot say).
+fn quantization_floor(front_end: &dyn FrontEnd, step: Option<f64>) -> Vec<f64> {
+    let Some(step) = step else {
+        return Vec::new();
+    };
+    (0..front_end.bands().len())
+        .map(|b| {
+            front_end
+                .white_noise_energy(b)
+                .map_or(0.0, |white| floor_energy(step, white))
+        })
+        .collect()
+}
+
 impl ChannelAnalyzer {
     /// An analyzer for channel `name` at `sample_rate_hz` using `front_end`.
     pub fn new(
@@ -135,17 +151,20 @@ impl ChannelAnalyzer {
             .fold(f64::INFINITY, f64::min)
             .max(RETRIGGER_MIN_FREQUENCY_HZ);
         let gap = ((sample_rate_hz / (4.0 * lowest_hz)).ceil() as usize).min(lookahead);
+        let floor = quantization_floor(&*front_end, config.quantization_step);
         ChannelAnalyzer {
             trackers: BandTrackers::new(
                 front_end
                     .bands()
                     .iter()
-                    .map(|b| {
+                    .enumerate()
+                    .map(|(k, b)| {
                         crate::decay::OnlineSchroeder::new(
                             front_end.resolution().frame_period_s,
                             b.center_hz,
                             config.estimate,
                         )
+                        .with_floor_energy(floor.get(k).copied().unwrap_or(0.0))
                     })
                     .collect(),
                 config.segmentation.end_drop_db,

@@ -52,6 +52,12 @@ pub struct AnalysisConfig {
     /// the recording set), s: its damping is removed from every estimate
     /// ([`crate::decay::damping::remove_exponential_window`]). `None`: no window.
     pub exponential_window_tau_s: Option<f64>,
+    /// Step between the input's sample values, in its sample units (integer WAV: one count;
+    /// [`crate::source::Source::quantization_step`]); `None` for float input. Its rounding
+    /// noise, step² / 12 per sample, is a floor every band's range must clear
+    /// ([`crate::decay::quantization`]).
+    #[serde(default)]
+    pub quantization_step: Option<f64>,
 }
 
 /// Default of [`AnalysisConfig::block_frames`].
@@ -80,6 +86,7 @@ impl Default for AnalysisConfig {
             segmentation: Segmentation::default(),
             block_frames: DEFAULT_BLOCK_FRAMES,
             exponential_window_tau_s: None,
+            quantization_step: None,
         }
     }
 }
@@ -93,6 +100,14 @@ impl AnalysisConfig {
                 return Err(crate::error::Error::setting(
                     "exponential_window_tau_s",
                     format!("expected a finite τ > 0 s, got {t}"),
+                ));
+            }
+        }
+        if let Some(step) = self.quantization_step {
+            if !(step.is_finite() && step > 0.0) {
+                return Err(crate::error::Error::setting(
+                    "quantization_step",
+                    format!("expected a finite step > 0, got {step}"),
                 ));
             }
         }

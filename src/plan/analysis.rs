@@ -50,6 +50,7 @@ impl AnalysisPlan {
     pub fn prepare(&self, mut source: Box<dyn Source>) -> Result<PreparedRun> {
         self.validate()?;
         let info = source.info().clone();
+        let quantization_step = source.quantization_step();
         let fs = info.sample_rate_hz;
         let mut front_end = self.front_end;
         let (source, resolved): (Box<dyn Source>, _) = if self.bands.needs_samples() {
@@ -91,7 +92,10 @@ impl AnalysisPlan {
             source,
             bands: resolved.bands,
             factory,
-            config: self.config,
+            config: AnalysisConfig {
+                quantization_step,
+                ..self.config
+            },
             warnings: resolved.warnings,
         })
     }

@@ -383,6 +383,11 @@ impl<R: Read> FrameReader<R> {
         self.scale = scale;
     }
 
+    /// What each stored value is multiplied by.
+    pub(crate) fn scale(&self) -> f64 {
+        self.scale
+    }
+
     /// The name of the input, for error messages.
     pub(crate) fn what(&self) -> &str {
         &self.what

@@ -155,6 +155,15 @@ pub trait Source: Send {
         None
     }
 
+    /// The step between two sample values the input can hold, in the units of its samples
+    /// (a 16-bit WAV scaled to [−1, 1): 2⁻¹⁵; with a `scale` per count, that scale); `None`
+    /// for float samples and text. Rounding to it adds noise of step² / 12 per sample, which
+    /// an undithered recording of a quiet decay does not show as a floor
+    /// ([`crate::decay::quantization`]).
+    fn quantization_step(&self) -> Option<f64> {
+        None
+    }
+
     /// Sample frames the input is expected to hold, for laying out memory only (never checked
     /// against anything): [`Source::duration_frames`], or, for a raw file read through a
     /// mapping, its size.

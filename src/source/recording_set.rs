@@ -415,6 +415,10 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
             self.inner.expected_frames()
         }
 
+        fn quantization_step(&self) -> Option<f64> {
+            self.inner.quantization_step()
+        }
+
         fn info(&self) -> &super::SignalInfo {
             &self.info
         }

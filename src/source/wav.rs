@@ -348,6 +348,14 @@ impl<R: Read + Send> Source for WavSource<R> {
         self.header.data_bytes.map(|b| b / frame_bytes.max(1))
     }
 
+    fn quantization_step(&self) -> Option<f64> {
+        // One count, in the units the samples are given in (the integer scale).
+        self.codec
+            .is_int()
+            .then(|| self.frames.scale().abs())
+            .filter(|s| s.is_finite() && *s > 0.0)
+    }
+
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
         self.frames.read_block(max_frames, block)
     }

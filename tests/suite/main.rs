@@ -51,6 +51,7 @@ mod regression_ifft_wraparound;
 mod regression_measured_records;
 mod regression_memory_limits;
 mod regression_merged_hits;
+mod regression_quantized_recordings;
 mod regression_row_order;
 mod regression_sparse_hits;
 mod regression_two_hits;

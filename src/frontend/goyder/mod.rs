@@ -361,6 +361,13 @@ impl FrontEnd for GoyderFrontEnd {
             .sum()
     }
 
+    fn white_noise_energy(&self, band: usize) -> Option<f64> {
+        // White real noise shifted by f_h is white complex noise of the same power; a frame is
+        // the block mean of 2|z|², z that noise low-passed.
+        let (_, sections) = self.designs.get(band)?;
+        Some(2.0 * super::gain_memo::impulse_energy(sections))
+    }
+
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         // The same few for every channel: once per process (see `gain_memo`).
         let (f_h, sections) = &self.designs[band];
@@ -380,6 +387,25 @@ impl FrontEnd for GoyderFrontEnd {
 mod tests {
     use super::*;
     use crate::frontend::simd::Isa;
+
+    /// White noise gives each band the energy per frame the quantization floor assumes, both
+    /// directions, narrow and wide bands.
+    #[test]
+    fn white_noise_gives_each_band_its_predicted_energy() {
+        let fs = 4096.0;
+        let bands: Vec<Band> = [(95.0, 105.0), (300.0, 350.0), (1000.0, 1400.0)]
+            .iter()
+            .map(|&(lo, hi)| Band::new(lo, hi).unwrap())
+            .collect();
+        for direction in [FilterDirection::Reversed, FilterDirection::Forward] {
+            let settings = GoyderSettings {
+                direction,
+                ..Default::default()
+            };
+            let mut fe = GoyderFrontEnd::new(settings, fs, &bands).unwrap();
+            crate::frontend::test_frames::assert_white_noise_energy(&mut fe, fs, 40.0, 0.08);
+        }
+    }
 
     /// The frames taken inside the AVX-512 kernel are those of the spans cut at every frame
     /// boundary, bit for bit: both directions, frames of 1 to 600 samples (across the

@@ -440,6 +440,11 @@ impl FrontEnd for OctaveBankFrontEnd {
         super::cascade_power(self.sections[band].iter().copied(), z_inv)
     }
 
+    fn white_noise_energy(&self, band: usize) -> Option<f64> {
+        // A frame is the mean square of the band's output.
+        Some(super::gain_memo::impulse_energy(self.sections.get(band)?))
+    }
+
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         // The same few for every channel: once per process (see `gain_memo`).
         super::gain_memo::bank_flat_gain(
@@ -457,6 +462,26 @@ impl FrontEnd for OctaveBankFrontEnd {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// White noise gives each band the energy per frame the quantization floor assumes: both
+    /// directions, orders 2 and 3, IEC octave bands at 8192 Hz.
+    #[test]
+    fn white_noise_gives_each_band_its_predicted_energy() {
+        let fs = 8192.0;
+        use crate::frontend::iec_bands::{iec_bands, OctaveFraction};
+        let bands = iec_bands(OctaveFraction::Octave, 63.0, fs).unwrap().0;
+        for direction in [FilterDirection::Reversed, FilterDirection::Forward] {
+            for order in [2, 3] {
+                let settings = OctaveBankSettings {
+                    order,
+                    direction,
+                    ..Default::default()
+                };
+                let mut fe = OctaveBankFrontEnd::new(settings, fs, &bands).unwrap();
+                crate::frontend::test_frames::assert_white_noise_energy(&mut fe, fs, 40.0, 0.08);
+            }
+        }
+    }
 
     /// The frequency each band reports is the frequency of its band signal: a 55 Hz decay
     /// through the 63 Hz octave band reads 55 Hz, and through the 125 Hz band (its skirt) too

@@ -477,6 +477,14 @@ impl FrontEnd for StftFrontEnd {
         0.5 * self.sample_rate_hz / self.window.len() as f64
     }
 
+    fn white_noise_energy(&self, band: usize) -> Option<f64> {
+        // Every bin of a windowed white frame holds Σ w² on average (zero padding adds bins,
+        // not energy per bin); the band sums its bins with their edge weights.
+        let window_energy: f64 = self.window.iter().map(|w| w * w).sum();
+        let bins: f64 = self.band_bins.get(band)?.weights.iter().sum();
+        Some(window_energy * bins)
+    }
+
     fn flat_gain(&self, band: usize, lo_hz: f64, hi_hz: f64) -> f64 {
         // It depends only on the transform and the two ranges, and every channel asks for the
         // same few: once per process (its 66 band sums were a third of a short run's time).

@@ -174,3 +174,28 @@ fn samples_ahead_change_neither_frames_nor_when_they_leave() {
         }
     }
 }
+
+/// The quantization floor rests on it: white noise through the STFT gives each band the
+/// predicted energy per frame, for even and odd window lengths, with zero padding, and for
+/// bands with fractional edge bins (4096 and 8192 Hz; 200 and 50 ms).
+#[test]
+fn white_noise_gives_each_band_its_predicted_energy() {
+    let bands: Vec<Band> = [
+        (20.0, 70.0),
+        (102.5, 152.5),
+        (400.0, 1000.0),
+        (1500.0, 1530.0),
+    ]
+    .iter()
+    .map(|&(lo, hi)| Band::new(lo, hi).unwrap())
+    .collect();
+    for (fs, window_ms, zero_pad) in [(4096.0, 200.0, 1), (8192.0, 200.0, 1), (8192.0, 50.0, 2)] {
+        let settings = StftSettings {
+            window_ms,
+            zero_pad,
+            ..Default::default()
+        };
+        let mut fe = StftFrontEnd::new(settings, fs, &bands).unwrap();
+        crate::frontend::test_frames::assert_white_noise_energy(&mut fe, fs, 120.0, 0.06);
+    }
+}
