@@ -17,6 +17,7 @@ use faer::sparse::SparseColMat;
 /// Standard linear solid of FORMATS.md §3 / report eq. 2.12:
 /// E*(ω) = ((1/(jωη) + 1/e)⁻¹ + e_inf). Moduli in Pa, η in Pa·s.
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct Sls {
     /// Spring of the Maxwell arm, Pa.
     pub e: f64,

@@ -94,6 +94,22 @@ impl Model {
             }
         }
         if let Some(s) = &p.sls {
+            if let Some(e) = p
+                .youngs_modulus
+                .filter(|&e| (e - s.e_inf).abs() > 1e-9 * s.e_inf)
+            {
+                // The law is the modulus (e_inf at rest, e_inf + e fast): a different one would
+                // be dropped without a word. The same value (as the example writes it) is
+                // redundant, not wrong.
+                return Err(invalid(
+                    format!("{key}.youngs_modulus"),
+                    format!(
+                        "an sls patch takes its modulus from its law (e_inf = {} Pa at rest); \
+                         give youngs_modulus equal to e_inf or none, got youngs_modulus = {e}",
+                        s.e_inf
+                    ),
+                ));
+            }
             positive(&format!("{key}.sls.e"), s.e)?;
             positive(&format!("{key}.sls.e_inf"), s.e_inf)?;
             positive(&format!("{key}.sls.eta"), s.eta)?;

@@ -84,6 +84,22 @@ pub struct RawSource<R: Read + Send> {
 /// Bytes a channel costs a source before any sample: its name and its place in the decoder.
 const RAW_BYTES_PER_CHANNEL: f64 = 64.0;
 
+/// Refuses, as raw samples, input that begins with a WAV header (`RIFF`…`WAVE`): its header
+/// would be read as samples and its rate and channel count replaced by the options'. No raw
+/// recording begins with those twelve bytes by chance (they read as f32 12690.1, …, 3428.1).
+fn refuse_wav_header(what: &str, first: &[u8]) -> Result<(), SourceError> {
+    if first.len() >= 12 && first.starts_with(b"RIFF") && &first[8..12] == b"WAVE" {
+        return Err(SourceError::UnrecognisedFormat {
+            what: what.to_string(),
+            detail: "raw samples were declared (--raw), but the input is a WAV file (it starts \
+                     with a RIFF…WAVE header); drop --raw, --fs and --channels: the header \
+                     gives them"
+                .into(),
+        });
+    }
+    Ok(())
+}
+
 impl<R: Read + Send> RawSource<R> {
     /// A raw source of `channels` channels at `fs_hz`. Errors (`Setting`) for a non-positive or
     /// non-finite rate or zero channels.
@@ -112,6 +128,7 @@ impl<R: Read + Send> RawSource<R> {
         R: std::os::fd::AsFd,
     {
         use std::os::fd::AsRawFd;
+        let what: String = what.into();
         let mapped = file.as_fd().try_clone_to_owned().ok().and_then(|fd| {
             let file = std::fs::File::from(fd);
             let mapped = super::mapped::MappedBytes::rest_of(&file);
@@ -120,9 +137,12 @@ impl<R: Read + Send> RawSource<R> {
             }
             mapped
         });
+        if let Some(m) = &mapped {
+            refuse_wav_header(&what, m.slice(0..m.len().min(12)))?;
+        }
         let streamed = mapped.is_none();
         let fd = file.as_fd().as_raw_fd();
-        let source = Self::with_frames(file, mapped, what.into(), format, fs_hz, channels)?;
+        let source = Self::with_frames(file, mapped, what, format, fs_hz, channels)?;
         Ok(match streamed {
             true => source.waking_on_pause(fd),
             false => source,

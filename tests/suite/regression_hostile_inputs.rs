@@ -265,3 +265,36 @@ fn recorders_unknown_length_placeholders_are_read_to_the_end() {
         assert!(row.contains(",0.010"), "{placeholder:#x}: {row}");
     }
 }
+
+/// Found by the contract probe: a WAV file declared raw (`--raw f32`) had its header read as
+/// samples and its rate and channel count replaced by the options', giving rows and exit 0.
+/// Given by path or redirected to standard input, it is now refused, saying to drop `--raw`.
+#[test]
+fn a_wav_file_declared_raw_is_refused_not_read_as_samples() {
+    let dir = fresh_dir("raw-wav");
+    let data: Vec<u8> = (0..8000i16)
+        .map(|i| ((f64::from(i) * 0.3).sin() * 1e4) as i16)
+        .flat_map(|s| s.to_le_bytes())
+        .collect();
+    let path = dir.join("rec.wav");
+    std::fs::write(&path, wav_header(1, data.len() as u32, &data)).unwrap();
+    let p = path.to_str().unwrap();
+    let raw = ["--raw", "f32", "--fs", "4000", "--channels", "1"];
+    let mut by_path = vec!["analyze", p];
+    by_path.extend(raw);
+    clean_failure(&by_path, b"", &[1, 2], &["drop --raw"]);
+    let mut redirected = vec!["analyze", "-"];
+    redirected.extend(raw);
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_dampscope"))
+        .args(&redirected)
+        .stdin(std::fs::File::open(&path).unwrap())
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        matches!(o.status.code(), Some(1 | 2)),
+        "{:?}\n{e}",
+        o.status
+    );
+    assert!(e.contains("drop --raw"), "{e}");
+}

@@ -50,6 +50,21 @@ fn impossible_values_name_their_key() {
         "{}",
         err_of(&sls)
     );
+    // Found by the contract probe: an unknown key in the law (a typo of `eta`) and a modulus
+    // beside it were dropped without a word, and the patch simulated with other values.
+    let typo = sls
+        .replace("eta = 1.0", "eta = 1.0, tau = 0.1")
+        .replace("-1.0", "1e6");
+    let e = err_of(&typo);
+    assert!(e.contains("tau"), "{e}");
+    let both = sls
+        .replace("-1.0", "1e6")
+        .replace("sls = {", "youngs_modulus = 5e9\nsls = {");
+    assert!(
+        err_of(&both).starts_with("patch[0].youngs_modulus: an sls patch takes its modulus"),
+        "{}",
+        err_of(&both)
+    );
 }
 
 #[test]
