@@ -63,7 +63,7 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     }
     let model =
         Model::load(&args.model).with_context(|| format!("model {}", args.model.display()))?;
-    super::warn_all(&crate::sim::mesh::Mesh::new(&model).warnings);
+    super::warn_all(&crate::sim::resolution::model_warnings(&model, args.fmax));
     let settings = DiagnoseSettings {
         fmax_hz: args.fmax,
         excitation_m: set.excitation.first().map(|e| (e.x_m, e.y_m)),

@@ -46,8 +46,10 @@ pub fn run(args: &ModesArgs) -> anyhow::Result<()> {
     let system = assemble(&model)?;
     let t_assembly = t0.elapsed().as_secs_f64();
     let (modes, report) = lowest_modes_with(&system, request, &EigenOptions::default())?;
+    // Whether the mesh resolves the highest mode found (known only now for `--count`).
+    let highest_hz = modes.frequencies_hz.last().copied().unwrap_or(0.0);
+    super::warn_all(crate::sim::resolution::resolution_warning(&model, highest_hz).as_slice());
     let text = if args.damping {
-        let highest_hz = modes.frequencies_hz.last().copied().unwrap_or(0.0);
         let poles = crate::sim::poles::lowest_damped_poles(
             &system,
             modes.frequencies_hz.len(),

@@ -151,7 +151,10 @@ fn frfs_of(
 /// The model at `path` (or the reference plate); its mesh's warnings go to stderr.
 fn load_model(path: Option<&Path>) -> anyhow::Result<Model> {
     let model = Model::load_or_reference(path)?;
-    super::warn_all(&crate::sim::mesh::Mesh::new(&model).warnings);
+    super::warn_all(&crate::sim::resolution::model_warnings(
+        &model,
+        model.output.fmax,
+    ));
     Ok(model)
 }
 

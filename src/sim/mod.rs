@@ -16,6 +16,7 @@ pub mod model;
 pub mod poles;
 pub mod reduced;
 pub mod reduced_poles;
+pub mod resolution;
 pub mod reuse;
 mod scatter_plan;
 pub mod simulate;

@@ -379,3 +379,35 @@ fn sensor_specs_that_are_neither_grid_nor_file_say_why() {
     assert!(typo.contains("unknown field `files`"), "{typo}");
     assert!(!err_of(&with("{ nx = 3.0, ny = 3 }")).contains("untagged"));
 }
+
+/// Found by the contract probe: a mesh far too coarse for the frequencies asked (a 16 × 24 mesh
+/// of the reference plate to 1 kHz: 3.6 elements per bending wavelength) gave modes several %
+/// high without a word. `modes` now warns about the highest mode it found, `simulate` and
+/// `diagnose` about the range they cover; the reference model to its 2 kHz does not warn.
+#[test]
+fn modes_beyond_what_the_mesh_resolves_are_warned_about() {
+    let dir = crate::common::fresh_dir("coarse-modes");
+    let coarse = REFERENCE_PLATE_TOML
+        .replace("nx = 32", "nx = 16")
+        .replace("ny = 48", "ny = 24");
+    let path = dir.join("coarse.toml");
+    std::fs::write(&path, coarse).unwrap();
+    let o = crate::common::run_dampscope(
+        &["modes", "--model", path.to_str().unwrap(), "--fmax", "1000"],
+        b"",
+    );
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("elements per bending wavelength at 978 Hz"),
+        "{e}"
+    );
+    let o = crate::common::run_dampscope(&["modes", "--count", "3"], b"");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(!e.contains("wavelength"), "{e}");
+    let reference = Model::reference_plate();
+    assert_eq!(
+        dampscope::sim::resolution::model_warnings(&reference, reference.output.fmax),
+        Vec::<String>::new()
+    );
+}
