@@ -87,7 +87,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let model = Model::load(Path::new("examples/plate-homogeneous.toml"))?;
     for &(name, dir, snr_db, fmax_hz) in CASES.iter().filter(|c| c.0.contains(&filter)) {
         let mut set = open_recording_set(Path::new(dir))?;
-        let sensors = sensor_positions(&set.sensors);
+        let sensors = sensor_positions(&set.sensors)?;
         let mut rec = Recordings::from_source(set.source.as_mut(), 1 << 20)?;
         rec.add_noise_mean_power(snr_db, 1);
         let settings = DiagnoseSettings {

@@ -55,7 +55,8 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     let mut set = open_recording_set(&args.input)
         .with_context(|| format!("recording set {}", args.input.display()))?;
     super::warn_all(&set.warnings);
-    let sensors = sensor_positions(&set.sensors);
+    let sensors = sensor_positions(&set.sensors)
+        .with_context(|| format!("recording set {}", args.input.display()))?;
     let mut rec = Recordings::from_source(set.source.as_mut(), MAX_DIAGNOSE_SAMPLES)
         .with_context(|| format!("reading {}", args.input.display()))?;
     if let Some(snr) = args.add_noise_db {

@@ -275,7 +275,7 @@ pub fn run(args: &ModalArgs) -> anyhow::Result<()> {
             };
             let model = crate::sim::model::Model::load(path)
                 .with_context(|| format!("model {}", path.display()))?;
-            let positions = sensor_positions(sensors);
+            let positions = sensor_positions(sensors).context("sensors.csv")?;
             let model_modes = model_modes_at(&model, &positions, MODEL_FMAX_FACTOR * args.fmax)
                 .with_context(|| format!("modes of the model {}", path.display()))?;
             match_model(&result.modes, &model_modes)

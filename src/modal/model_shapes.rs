@@ -15,14 +15,37 @@ use crate::sim::model::{Model, SensorPosition};
 /// stiffer structure's modes near the limit still find their partner.
 pub const MODEL_FMAX_FACTOR: f64 = 1.3;
 
-/// Where a recording set's sensors are, as the model reads positions.
-pub fn sensor_positions(sensors: &[crate::source::recording_set::Sensor]) -> Vec<SensorPosition> {
+/// Where a recording set's sensors are, as the model reads positions. The model's responses
+/// are out-of-plane (z) displacements, the same through the thickness of a bending plate; a
+/// sensor measuring another direction (`dir` of FORMATS.md §1: `x`, `y`, or `-z`, whose sign is
+/// flipped) would be compared with them silently, so it is an error naming the sensor.
+pub fn sensor_positions(
+    sensors: &[crate::source::recording_set::Sensor],
+) -> Result<Vec<SensorPosition>, SimError> {
     sensors
         .iter()
-        .map(|s| SensorPosition {
-            id: s.id.clone(),
-            x_m: s.x_m,
-            y_m: s.y_m,
+        .enumerate()
+        .map(|(row, s)| {
+            let dir = s.dir.trim().to_ascii_lowercase();
+            if !matches!(dir.as_str(), "z" | "+z" | "") {
+                return Err(crate::sim::error::invalid(
+                    format!("sensors.csv row {} (id {}).dir", row + 1, s.id),
+                    format!(
+                        "expected z (the model's responses are out-of-plane), got {:?}{}",
+                        s.dir,
+                        if dir == "-z" {
+                            ": negate the channel and give dir z"
+                        } else {
+                            ": leave in-plane sensors out of the set"
+                        }
+                    ),
+                ));
+            }
+            Ok(SensorPosition {
+                id: s.id.clone(),
+                x_m: s.x_m,
+                y_m: s.y_m,
+            })
         })
         .collect()
 }
@@ -129,5 +152,30 @@ mod tests {
         assert!((mac_complex_real(&rotated, &real) - 1.0).abs() < 1e-12);
         let other = [2.0, 1.0, 0.0];
         assert!(mac_complex_real(&rotated, &other) < 1e-12);
+    }
+
+    /// Found by the contract probe: a sensor measuring x was compared with the model's z
+    /// responses without a word. z (any case, `+z`) passes; x, y and −z are refused by row and id.
+    #[test]
+    fn sensors_measuring_another_direction_are_refused() {
+        let sensor = |id: &str, dir: &str| crate::source::recording_set::Sensor {
+            id: id.into(),
+            x_m: 0.5,
+            y_m: 0.5,
+            z_m: None,
+            dir: dir.into(),
+        };
+        let ok = [sensor("a", "z"), sensor("b", " Z"), sensor("c", "+z")];
+        assert_eq!(sensor_positions(&ok).unwrap().len(), 3);
+        let x = sensor_positions(&[sensor("a", "z"), sensor("b", "x")]).unwrap_err();
+        assert!(
+            x.to_string()
+                .starts_with("sensors.csv row 2 (id b).dir: expected z"),
+            "{x}"
+        );
+        let minus = sensor_positions(&[sensor("m", "-z")])
+            .unwrap_err()
+            .to_string();
+        assert!(minus.contains("negate the channel"), "{minus}");
     }
 }

@@ -102,7 +102,7 @@ fn a_right_model_gets_no_finding() {
         "tests/data/modal/plate-48x72-homogeneous",
     ))
     .unwrap();
-    let sensors = sensor_positions(&set.sensors);
+    let sensors = sensor_positions(&set.sensors).unwrap();
     let mut rec = Recordings::from_source(set.source.as_mut(), 1 << 20).unwrap();
     rec.add_noise_mean_power(50.0, 2);
     let model = Model::load(std::path::Path::new(MODEL)).unwrap();

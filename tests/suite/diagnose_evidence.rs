@@ -13,7 +13,7 @@ const MODEL: &str = "examples/plate-homogeneous.toml";
 /// Identifies `set` at 50 dB (seed 1) below 80 Hz and gathers the evidence against [`MODEL`].
 fn evidence(set: &str) -> (Vec<dampscope::modal::Mode>, Evidence) {
     let mut opened = open_recording_set(std::path::Path::new(set)).expect("test data");
-    let positions = sensor_positions(&opened.sensors);
+    let positions = sensor_positions(&opened.sensors).unwrap();
     let mut rec =
         dampscope::modal::Recordings::from_source(opened.source.as_mut(), 1 << 20).unwrap();
     rec.add_noise_mean_power(50.0, 1);

@@ -208,7 +208,7 @@ fn shapes_match_a_coarser_model_with_mac_of_at_least_098() {
     use dampscope::modal::model_shapes::{match_model, model_modes_at, sensor_positions};
     use dampscope::sim::model::Model;
     let set = open_recording_set(std::path::Path::new(SET)).unwrap();
-    let positions = sensor_positions(&set.sensors);
+    let positions = sensor_positions(&set.sensors).unwrap();
     let model = Model::load(std::path::Path::new("examples/plate-homogeneous.toml")).unwrap();
     let model_modes = model_modes_at(&model, &positions, 100.0).unwrap();
     let mut rec = recordings();

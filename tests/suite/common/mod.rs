@@ -199,7 +199,7 @@ pub fn noisy_set(
 ) {
     let mut set = dampscope::source::recording_set::open_recording_set(std::path::Path::new(dir))
         .unwrap_or_else(|e| panic!("{dir}: {e}"));
-    let sensors = dampscope::modal::model_shapes::sensor_positions(&set.sensors);
+    let sensors = dampscope::modal::model_shapes::sensor_positions(&set.sensors).unwrap();
     let mut rec = dampscope::modal::Recordings::from_source(set.source.as_mut(), 1 << 20)
         .unwrap_or_else(|e| panic!("{dir}: {e}"));
     rec.add_noise_mean_power(snr_db, seed);
