@@ -71,8 +71,15 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
         model_form_sigma: 0.01 * args.model_form_percent,
         // A window the responses carry (FRFs from an impact test) is not the structure's loss.
         exponential_window_tau_s: set.meta.exponential_window_tau_s,
+        derivatives_to_acceleration: set.meta.derivatives_to_acceleration().ok(),
         ..DiagnoseSettings::default()
     };
+    if let Err(why) = set.meta.derivatives_to_acceleration() {
+        super::warn_all(&[format!(
+            "{why}: no FRF error is computed; the modes' frequencies, damping and shapes are \
+             compared as usual"
+        )]);
+    }
     let bar = indicatif::ProgressBar::new_spinner();
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     let start = std::time::Instant::now();

@@ -57,6 +57,11 @@ pub struct DiagnoseSettings {
     /// read as loss the model lacks. The FRF error still compares the responses as recorded
     /// (windowed) with the model's. `None`: no window.
     pub exponential_window_tau_s: Option<f64>,
+    /// How many times the recordings must be differentiated to be accelerations, for the FRF
+    /// error (0: acceleration, the default; 1: velocity; 2: displacement: a recording set's
+    /// [`crate::source::RecordingMeta::derivatives_to_acceleration`]); `None`: they are not
+    /// impulse responses of a known quantity (free decays), and no FRF error is computed.
+    pub derivatives_to_acceleration: Option<u32>,
 }
 
 impl Default for DiagnoseSettings {
@@ -67,6 +72,7 @@ impl Default for DiagnoseSettings {
             excitation_m: None,
             model_form_sigma: DEFAULT_MODEL_FORM_SIGMA,
             exponential_window_tau_s: None,
+            derivatives_to_acceleration: Some(0),
         }
     }
 }
@@ -549,6 +555,7 @@ pub fn diagnose_with_progress(
     let ex = &base.model.excitation;
     let frf = compare_frfs(
         rec,
+        settings.derivatives_to_acceleration,
         sensors,
         settings.excitation_m.unwrap_or((ex.x, ex.y)),
         (0.8 * lowest, settings.fmax_hz),

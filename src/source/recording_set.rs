@@ -84,6 +84,35 @@ pub struct RecordingMeta {
     pub scale: Option<f64>,
 }
 
+impl RecordingMeta {
+    /// How many times the responses must be differentiated to be accelerations, the quantity
+    /// a model's accelerance compares with: 0 for `acceleration` (and when no quantity is
+    /// given), 1 for `velocity`, 2 for `displacement`. `Err` says why the responses cannot be
+    /// compared as impulse responses at all: free decays (their amplitudes and phases are set
+    /// by the excitation before them, not by the structure's response to a unit impulse), or
+    /// a quantity not known.
+    pub fn derivatives_to_acceleration(&self) -> Result<u32, String> {
+        if self.kind == DecayKind::FreeDecay {
+            return Err(
+                "the responses are free decays (kind free_decay), not impulse responses".into(),
+            );
+        }
+        match self
+            .quantity
+            .as_deref()
+            .map(|q| q.trim().to_ascii_lowercase())
+        {
+            None => Ok(0),
+            Some(q) if q == "acceleration" => Ok(0),
+            Some(q) if q == "velocity" => Ok(1),
+            Some(q) if q == "displacement" => Ok(2),
+            Some(q) => Err(format!(
+                "the quantity {q:?} is none of acceleration, velocity, displacement"
+            )),
+        }
+    }
+}
+
 /// An opened recording set: metadata, sensors and a streaming source of the responses whose
 /// channel names are the sensor ids, in `sensors.csv` row order.
 pub struct RecordingSet {
@@ -445,4 +474,42 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
         channel_names: names,
     };
     Box::new(Renamed { inner, info })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `quantity` and `kind` say how a recording set's responses compare with a model's
+    /// accelerance: found by the contract probe, where displacement responses were compared as
+    /// accelerations and free decays as impulse responses.
+    #[test]
+    fn quantity_and_kind_say_how_responses_become_accelerances() {
+        let meta = |kind, quantity: Option<&str>| RecordingMeta {
+            kind,
+            quantity: quantity.map(String::from),
+            ..Default::default()
+        };
+        use DecayKind::{FreeDecay, ImpulseResponse};
+        assert_eq!(
+            meta(ImpulseResponse, None).derivatives_to_acceleration(),
+            Ok(0)
+        );
+        assert_eq!(
+            meta(ImpulseResponse, Some("acceleration")).derivatives_to_acceleration(),
+            Ok(0)
+        );
+        assert_eq!(
+            meta(ImpulseResponse, Some(" Velocity")).derivatives_to_acceleration(),
+            Ok(1)
+        );
+        assert_eq!(
+            meta(ImpulseResponse, Some("displacement")).derivatives_to_acceleration(),
+            Ok(2)
+        );
+        let strain = meta(ImpulseResponse, Some("strain")).derivatives_to_acceleration();
+        assert!(strain.unwrap_err().contains("\"strain\""));
+        let free = meta(FreeDecay, Some("acceleration")).derivatives_to_acceleration();
+        assert!(free.unwrap_err().contains("free decays"));
+    }
 }
