@@ -63,9 +63,11 @@ pub struct RecordingMeta {
     /// Sample rate in Hz (the WAV header wins when there is a WAV; needed for a CSV without time).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub fs: Option<f64>,
-    /// Impulse responses or free decays.
+    /// Impulse responses or free decays (`diagnose` computes no FRF error for free decays).
     pub kind: DecayKind,
-    /// Measured quantity (`acceleration`, …), informative.
+    /// Measured quantity: `acceleration` (assumed when absent), `velocity` or `displacement`;
+    /// `diagnose` differentiates the responses accordingly before comparing them with the
+    /// model's accelerance ([`RecordingMeta::derivatives_to_acceleration`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub quantity: Option<String>,
     /// Unit of the samples, informative.
@@ -272,7 +274,7 @@ pub fn read_excitation(path: &Path) -> Result<Vec<Excitation>, SourceError> {
 }
 
 /// Reads `meta.json` as other tools write it: a UTF-8 byte-order mark is skipped, a key given
-/// twice keeps its last value, `null` means absent, and the informative keys (`snr_db`,
+/// twice keeps its last value, `null` means absent, and the keys read leniently (`snr_db`,
 /// `quantity`, `unit`) are dropped with a warning when they are not what they should be; an
 /// error names the key.
 fn read_meta(path: &Path, warnings: &mut Vec<String>) -> Result<RecordingMeta, SourceError> {
@@ -299,12 +301,14 @@ fn read_meta(path: &Path, warnings: &mut Vec<String>) -> Result<RecordingMeta, S
         };
         if !fits {
             warnings.push(format!(
-                "{}: {informative} = {v} ignored (informative only; expected a {})",
+                "{}: {informative} = {v} ignored ({})",
                 path.display(),
-                if informative == "snr_db" {
-                    "number of dB"
-                } else {
-                    "string"
+                match informative {
+                    "snr_db" => "informative only; expected a number of dB",
+                    "quantity" =>
+                        "expected acceleration, velocity or displacement as a string; \
+                                   acceleration is assumed",
+                    _ => "informative only; expected a string",
                 }
             ));
             keys.remove(informative);
