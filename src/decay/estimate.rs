@@ -319,8 +319,8 @@ pub fn estimate_from_curve(
 
 /// [`estimate_from_curve`] with the per-frame frequencies coded by `coding`: only the fitted
 /// frames' are decoded; and with the band's share of the input's rounding noise,
-/// `floor_energy` per frame (0: float input), as the noise floor where the record shows no
-/// higher one ([`super::quantization`]).
+/// `floor_energy` per frame (0: float input), which every range must clear by its depth plus
+/// the margins unless the record's own floor dithers it ([`super::quantization`]).
 #[allow(clippy::too_many_arguments)]
 pub fn estimate_from_coded_curve(
     edc: &[f64],

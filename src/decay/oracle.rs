@@ -33,11 +33,7 @@ impl BatchSchroeder {
 
     /// As [`super::OnlineSchroeder::with_floor_energy`].
     pub fn with_floor_energy(mut self, floor_energy: f64) -> Self {
-        self.floor_energy = if floor_energy.is_finite() && floor_energy > 0.0 {
-            floor_energy
-        } else {
-            0.0
-        };
+        self.floor_energy = super::quantization::kept_floor(floor_energy);
         self
     }
 }

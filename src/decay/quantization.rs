@@ -24,6 +24,15 @@ pub fn floor_energy(step: f64, white_noise_energy: f64) -> f64 {
     step * step / 12.0 * white_noise_energy
 }
 
+/// `floor_energy` as an estimator keeps it: 0 (no floor) unless finite and positive.
+pub(crate) fn kept_floor(floor_energy: f64) -> f64 {
+    if floor_energy.is_finite() && floor_energy > 0.0 {
+        floor_energy
+    } else {
+        0.0
+    }
+}
+
 /// A measured noise floor at least this far above the rounding noise dithers it, dB: noise of
 /// more than Δ² / 6 per sample (σ ≳ 0.4 Δ) spreads each sample over several steps, and what
 /// rounding adds is then part of the floor that the estimate measures and compensates.

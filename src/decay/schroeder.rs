@@ -89,11 +89,7 @@ impl OnlineSchroeder {
     /// ([`super::quantization::floor_energy`]): its estimates treat it as the noise floor where
     /// the record shows no higher one. It stays through resets.
     pub fn with_floor_energy(mut self, floor_energy: f64) -> Self {
-        self.floor_energy = if floor_energy.is_finite() && floor_energy > 0.0 {
-            floor_energy
-        } else {
-            0.0
-        };
+        self.floor_energy = super::quantization::kept_floor(floor_energy);
         self
     }
 

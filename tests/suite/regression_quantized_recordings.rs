@@ -6,7 +6,9 @@
 //! is (`decay::quantization`); a band that cannot clear it by the range's depth and margins is
 //! withheld as `quantization_limited`.
 
-use crate::common::{decaying_sines, fresh_dir, gaussian_noise, rel_err, TestCommand};
+use crate::common::{
+    decaying_sines, fresh_dir, gaussian_noise, rel_err, write_float_wav, TestCommand,
+};
 
 /// Four modes, (f_hz, T60_s, amplitude): a strong slow one, a weak fast one, a medium one, a
 /// weak one; 50 Hz bands around each.
@@ -50,19 +52,6 @@ fn write_int_wav(path: &std::path::Path, x: &[f64], bits: u16, fs: u32) {
             w.write_sample(count as i16).unwrap();
         }
     }
-    w.finalize().unwrap();
-}
-
-/// `x` as a 32-bit float WAV at `path`.
-fn write_float_wav(path: &std::path::Path, x: &[f64]) {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: FS,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec).unwrap();
-    x.iter().for_each(|&v| w.write_sample(v as f32).unwrap());
     w.finalize().unwrap();
 }
 
@@ -111,7 +100,7 @@ fn quiet_undithered_integer_wavs_give_no_wrong_damping() {
             let int_path = dir.join(format!("i{seed}_{bits}.wav"));
             let float_path = dir.join(format!("f{seed}_{bits}.wav"));
             write_int_wav(&int_path, &x, bits, FS);
-            write_float_wav(&float_path, &x);
+            write_float_wav(&float_path, &x, FS);
             let from_int = analyse(&int_path);
             let from_float = analyse(&float_path);
             let case = format!("seed {seed}, {bits} bit at {peak_dbfs} dBFS");

@@ -29,20 +29,6 @@ fn record(hits: &[(f64, f64)], seed: u64) -> Vec<f64> {
     x
 }
 
-fn write_wav(path: &std::path::Path, x: &[f64]) {
-    let spec = hound::WavSpec {
-        channels: 1,
-        sample_rate: FS,
-        bits_per_sample: 32,
-        sample_format: hound::SampleFormat::Float,
-    };
-    let mut w = hound::WavWriter::create(path, spec).unwrap();
-    for &v in x {
-        w.write_sample(v as f32).unwrap();
-    }
-    w.finalize().unwrap();
-}
-
 /// Rows of `analyze` as maps column → value.
 fn analyze(path: &std::path::Path, extra: &[&str]) -> Vec<HashMap<String, String>> {
     let mut args = vec!["analyze", path.to_str().unwrap()];
@@ -90,9 +76,9 @@ fn two_hits_0_3_s_apart_are_two_decays_equal_to_each_hit_alone() {
     let both = dir.join("both.wav");
     let first = dir.join("first.wav");
     let second = dir.join("second.wav");
-    write_wav(&both, &record(&[(0.05, 1.0), (0.35, 0.7)], 1));
-    write_wav(&first, &record(&[(0.05, 1.0)], 1));
-    write_wav(&second, &record(&[(0.35, 0.7)], 1));
+    crate::common::write_float_wav(&both, &record(&[(0.05, 1.0), (0.35, 0.7)], 1), FS);
+    crate::common::write_float_wav(&first, &record(&[(0.05, 1.0)], 1), FS);
+    crate::common::write_float_wav(&second, &record(&[(0.35, 0.7)], 1), FS);
     for front_end in [
         &["--front-end", "stft", "--window-ms", "20"][..],
         &["--front-end", "goyder"][..],

@@ -85,6 +85,21 @@ pub fn gaussian_noise(n: usize, sigma: f64, seed: u64) -> Vec<f64> {
     (0..n).map(|_| sigma * g.next_gaussian()).collect()
 }
 
+/// `x` as a mono 32-bit float WAV at `path`, `fs_hz` samples per second.
+pub fn write_float_wav(path: &std::path::Path, x: &[f64], fs_hz: u32) {
+    let spec = hound::WavSpec {
+        channels: 1,
+        sample_rate: fs_hz,
+        bits_per_sample: 32,
+        sample_format: hound::SampleFormat::Float,
+    };
+    let mut w = hound::WavWriter::create(path, spec).unwrap();
+    for &v in x {
+        w.write_sample(v as f32).unwrap();
+    }
+    w.finalize().unwrap();
+}
+
 /// The rows of a CSV file with a header, each as column name → text.
 pub fn csv_rows(path: &std::path::Path) -> Vec<std::collections::HashMap<String, String>> {
     let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
