@@ -75,6 +75,16 @@ fn reason(e: crate::error::Error) -> String {
     }
 }
 
+/// A frequency option, Hz: a finite number above 0 (`--fmax 0` reached the model's own check
+/// and was reported as a fault of `--model`).
+pub(crate) fn parse_positive_hz(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(f) if f.is_finite() && f > 0.0 => Ok(f),
+        Ok(f) => Err(format!("expected a frequency > 0 Hz, got {f}")),
+        Err(e) => Err(format!("expected a frequency in Hz, got {text:?} ({e})")),
+    }
+}
+
 fn parse_band_arg(text: &str) -> Result<Band, String> {
     parse_band(text).map_err(reason)
 }

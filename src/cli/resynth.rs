@@ -26,7 +26,7 @@ pub struct ResynthArgs {
     #[arg(long, value_name = "FILE")]
     pub global: PathBuf,
     /// Highest frequency, Hz (default: the model's fmax).
-    #[arg(long, value_name = "HZ")]
+    #[arg(long, value_name = "HZ", value_parser = super::args::parse_positive_hz)]
     pub fmax: Option<f64>,
     /// Modes below this × fmax carry the re-synthesis (the rest enter as a static residual,
     /// which misses their dynamic amplification 1/(1 − (f/f_i)²): 3 keeps that below 12.5 %

@@ -298,3 +298,33 @@ fn a_wav_file_declared_raw_is_refused_not_read_as_samples() {
     );
     assert!(e.contains("drop --raw"), "{e}");
 }
+
+/// Found by the contract probe: `resynth --fmax 0` was reported as "invalid setting --model:
+/// output.fmax" (the option is copied into the model before its check). It is now a usage error
+/// that names `--fmax`.
+#[test]
+fn resynth_with_no_frequency_range_names_its_option() {
+    let dir = fresh_dir("resynth-fmax");
+    let global = dir.join("global.csv");
+    std::fs::write(
+        &global,
+        "f_lo_hz,f_hi_hz,f_center_hz,mean_d\n25,75,50,0.01\n",
+    )
+    .unwrap();
+    let out = dir.join("out");
+    for fmax in ["--fmax=0", "--fmax=-5", "--fmax=nan"] {
+        clean_failure(
+            &[
+                "resynth",
+                "--global",
+                global.to_str().unwrap(),
+                "--out",
+                out.to_str().unwrap(),
+                fmax,
+            ],
+            b"",
+            &[2],
+            &["--fmax", "expected a frequency > 0 Hz"],
+        );
+    }
+}
