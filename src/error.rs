@@ -46,3 +46,14 @@ impl Error {
         }
     }
 }
+
+/// `x` as a message shows a number a user gave: as written for ordinary magnitudes, in
+/// exponent form outside 10⁻⁴…10¹⁵ (`--fs 1e-300` printed 300 zeros).
+pub(crate) fn shown(x: f64) -> String {
+    let magnitude = x.abs();
+    if x == 0.0 || !x.is_finite() || (1e-4..1e15).contains(&magnitude) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}

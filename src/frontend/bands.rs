@@ -98,9 +98,11 @@ pub fn default_bands(sample_rate_hz: f64) -> Result<Vec<Band>> {
             "bands",
             format!(
                 "the default layout (50 Hz bands centred on 50, 100, … Hz up to 0.4 fs) holds \
-                 no band at {sample_rate_hz} Hz, where 0.4 fs is {top} Hz; expected a sample \
+                 no band at {} Hz, where 0.4 fs is {} Hz; expected a sample \
                  rate of at least 187.5 Hz, or bands chosen with --band LO:HI, --bands \
-                 LO:HI:WIDTH, octave, third-octave or auto"
+                 LO:HI:WIDTH, octave, third-octave or auto",
+                crate::error::shown(sample_rate_hz),
+                crate::error::shown(top)
             ),
         ));
     }
@@ -129,6 +131,9 @@ mod tests {
             );
             assert!(!e.contains("25:"), "{fs}: {e}");
         }
+        // Found by the contract probe: `--fs 1e-300` printed three hundred zeros.
+        let e = default_bands(1e-300).unwrap_err().to_string();
+        assert!(e.contains("at 1e-300 Hz, where 0.4 fs is 4e-301 Hz"), "{e}");
     }
 
     #[test]
