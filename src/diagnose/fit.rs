@@ -118,6 +118,14 @@ impl MeasuredFrf {
             .collect();
         let fft = RealFftPlanner::<f64>::new().plan_fft_forward(n);
         let dt = 1.0 / rec.fs_hz;
+        // Per bin, dt (the DFT as a Fourier integral) times (jω)^derivatives.
+        let factors: Vec<c64> = bins
+            .iter()
+            .map(|&k| {
+                let jw = c64::new(0.0, 2.0 * std::f64::consts::PI * k as f64 * df);
+                c64::new(dt, 0.0) * jw.powi(derivatives as i32)
+            })
+            .collect();
         let channels = rec
             .channels
             .iter()
@@ -128,10 +136,8 @@ impl MeasuredFrf {
                 fft.process(&mut buf, &mut spec)
                     .expect("buffer lengths come from the plan");
                 bins.iter()
-                    .map(|&k| {
-                        let jw = c64::new(0.0, 2.0 * std::f64::consts::PI * k as f64 * df);
-                        c64::new(spec[k].re * dt, spec[k].im * dt) * jw.powi(derivatives as i32)
-                    })
+                    .zip(&factors)
+                    .map(|(&k, factor)| c64::new(spec[k].re, spec[k].im) * factor)
                     .collect()
             })
             .collect();

@@ -479,8 +479,15 @@ impl FrontEnd for StftFrontEnd {
 
     fn white_noise_energy(&self, band: usize) -> Option<f64> {
         // Every bin of a windowed white frame holds Σ w² on average (zero padding adds bins,
-        // not energy per bin); the band sums its bins with their edge weights.
-        let window_energy: f64 = self.window.iter().map(|w| w * w).sum();
+        // not energy per bin); the band sums its bins with their edge weights. Σ w² of a
+        // periodic Hann window of n ≥ 3 samples is 3n/8 (asked per band of every channel:
+        // no pass over the window).
+        let n = self.window.len();
+        let window_energy = if n >= 3 {
+            0.375 * n as f64
+        } else {
+            self.window.iter().map(|w| w * w).sum()
+        };
         let bins: f64 = self.band_bins.get(band)?.weights.iter().sum();
         Some(window_energy * bins)
     }
