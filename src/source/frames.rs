@@ -6,6 +6,8 @@ use std::io::{self, Read};
 
 use std::sync::Arc;
 
+#[path = "frames_edges.rs"]
+mod edges;
 #[cfg(target_arch = "x86_64")]
 #[path = "frames_f32_avx2.rs"]
 mod f32_avx2;

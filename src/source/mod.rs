@@ -70,6 +70,15 @@ pub enum SourceError {
         /// What was being read.
         what: String,
     },
+    /// Input past what one source reads was left unread (a second WAV file after the
+    /// first): the decays read are whole, but part of the input was not analysed.
+    #[error("{what}: {detail}")]
+    LeftUnread {
+        /// What was being read.
+        what: String,
+        /// What was left, and why.
+        detail: String,
+    },
     /// A required setting is missing or impossible (sample rate, channel count, …).
     #[error("{what}: {detail}")]
     Setting {

@@ -84,11 +84,14 @@ pub struct RawSource<R: Read + Send> {
 /// Bytes a channel costs a source before any sample: its name and its place in the decoder.
 const RAW_BYTES_PER_CHANNEL: f64 = 64.0;
 
+/// Bytes that tell a WAV file: `RIFF`, the chunk's size, `WAVE`.
+const WAV_MAGIC_BYTES: usize = 12;
+
 /// Refuses, as raw samples, input that begins with a WAV header (`RIFF`…`WAVE`): its header
 /// would be read as samples and its rate and channel count replaced by the options'. No raw
 /// recording begins with those twelve bytes by chance (they read as f32 12690.1, …, 3428.1).
 fn refuse_wav_header(what: &str, first: &[u8]) -> Result<(), SourceError> {
-    if first.len() >= 12 && first.starts_with(b"RIFF") && &first[8..12] == b"WAVE" {
+    if first.len() >= WAV_MAGIC_BYTES && first.starts_with(b"RIFF") && &first[8..12] == b"WAVE" {
         return Err(SourceError::UnrecognisedFormat {
             what: what.to_string(),
             detail: "raw samples were declared (--raw), but the input is a WAV file (it starts \
@@ -138,15 +141,25 @@ impl<R: Read + Send> RawSource<R> {
             mapped
         });
         if let Some(m) = &mapped {
-            refuse_wav_header(&what, m.slice(0..m.len().min(12)))?;
+            refuse_wav_header(&what, m.slice(0..m.len().min(WAV_MAGIC_BYTES)))?;
         }
         let streamed = mapped.is_none();
         let fd = file.as_fd().as_raw_fd();
-        let source = Self::with_frames(file, mapped, what, format, fs_hz, channels)?;
-        Ok(match streamed {
-            true => source.waking_on_pause(fd),
-            false => source,
-        })
+        let mut source = Self::with_frames(file, mapped, what, format, fs_hz, channels)?;
+        if !streamed {
+            return Ok(source);
+        }
+        // A stream's first bytes, read ahead and kept as its first samples (a WAV piped in).
+        let what = source.frames.what().to_string();
+        let first = source
+            .frames
+            .first_bytes(WAV_MAGIC_BYTES)
+            .map_err(|e| SourceError::Io {
+                what: what.clone(),
+                source: e,
+            })?;
+        refuse_wav_header(&what, first)?;
+        Ok(source.waking_on_pause(fd))
     }
 
     /// This source, handing out a block not yet full when nothing arrives on `fd` (the

@@ -5,7 +5,9 @@
 //! PCM or float sub-format; 64-bit float as well) and the data chunk is streamed in blocks.
 //! A data chunk length of 0 or 0xFFFFFFFF, as streaming writers emit when the length is not
 //! known yet, means "read to the end of the stream". Limitation: in that case any chunk after
-//! the data chunk would be read as samples (streaming writers put nothing after it).
+//! the data chunk would be read as samples (streaming writers put nothing after it). Where the
+//! length is known, the bytes after the RIFF chunk are looked at once the data is read: a
+//! second WAV file there ends the run with [`SourceError::LeftUnread`].
 
 use std::io::{self, Read};
 
@@ -25,6 +27,9 @@ pub struct WavHeader {
     pub bytes_per_sample: usize,
     /// Length of the data chunk in bytes; `None` when unknown (0 or 0xFFFFFFFF in the header).
     pub data_bytes: Option<u64>,
+    /// Bytes of the file's RIFF chunk after the data chunk (trailing chunks and the data's pad
+    /// byte), as its size field says; `None` when the data's length or the size is unknown.
+    pub trailing_bytes: Option<u64>,
 }
 
 fn malformed(what: &str, detail: String) -> SourceError {
@@ -168,10 +173,14 @@ fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), Sou
             ),
         });
     }
+    let riff_bytes = u64::from(u32_at(&riff, 4));
+    // Bytes of the RIFF chunk's body read so far ("WAVE" and the chunks before the data).
+    let mut body_read: u64 = 4;
     let mut fmt: Option<(u32, usize, Codec)> = None;
     loop {
         let mut ch = [0u8; 8];
         read_exact_or(r, &mut ch, what, "chunk header before the data chunk")?;
+        body_read += 8;
         let id = [ch[0], ch[1], ch[2], ch[3]];
         let len = u32_at(&ch, 4);
         match &id {
@@ -184,6 +193,7 @@ fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), Sou
                 }
                 let mut body = vec![0u8; len as usize + (len as usize & 1)];
                 read_exact_or(r, &mut body, what, "fmt chunk")?;
+                body_read += body.len() as u64;
                 fmt = Some(parse_fmt(&body, what)?);
             }
             b"data" => {
@@ -206,6 +216,10 @@ fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), Sou
                     is_float: !codec.is_int(),
                     bytes_per_sample: codec.bytes(),
                     data_bytes,
+                    // The RIFF chunk's own pad byte, when its size is odd, ends it too.
+                    trailing_bytes: data_bytes
+                        .and_then(|n| (riff_bytes + (riff_bytes & 1)).checked_sub(body_read + n))
+                        .filter(|_| riff_bytes != u64::from(u32::MAX)),
                 };
                 return Ok((header, codec));
             }
@@ -216,6 +230,7 @@ fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), Sou
                         what: what.to_string(),
                         source: e,
                     })?;
+                body_read += skipped;
                 if skipped < skip {
                     return Err(SourceError::Truncated {
                         what: what.to_string(),
@@ -241,7 +256,12 @@ pub struct WavSource<R: Read + Send> {
     info: SignalInfo,
     frames: FrameReader<R>,
     codec: Codec,
+    /// Whether the bytes after the RIFF chunk were looked at ([`WavSource::end_of_data`]).
+    looked_past: bool,
 }
+
+/// Bytes looked at after a file's RIFF chunk for the header of another.
+const NEXT_HEADER_BYTES: usize = 12;
 
 impl WavSource<io::BufReader<std::fs::File>> {
     /// A WAV file: its header read from `file` (which must be at the file's start), its samples
@@ -307,7 +327,36 @@ impl<R: Read + Send> WavSource<R> {
             info,
             frames,
             codec,
+            looked_past: false,
         }
+    }
+
+    /// `read` as the source returns it, but at the end of the data an error when another WAV
+    /// file follows this one's RIFF chunk (`cat a.wav b.wav |`): one WAV is read per input
+    /// (docs/FORMATS.md §2), and the second file's samples were left unread without a word.
+    /// Trailing chunks inside the RIFF chunk, and anything after it that is not a WAV header,
+    /// end the input as before.
+    fn end_of_data(&mut self, read: Result<bool, SourceError>) -> Result<bool, SourceError> {
+        if !matches!(read, Ok(false)) || self.looked_past {
+            return read;
+        }
+        self.looked_past = true;
+        let Some(trailing) = self.header.trailing_bytes else {
+            return read;
+        };
+        let next = self.frames.bytes_past(trailing, NEXT_HEADER_BYTES);
+        if next.len() == NEXT_HEADER_BYTES && next.starts_with(b"RIFF") && &next[8..] == b"WAVE" {
+            let data = self.header.data_bytes.unwrap_or(0);
+            return Err(SourceError::LeftUnread {
+                what: self.frames.what().to_string(),
+                detail: format!(
+                    "another WAV file follows this one's {data} data bytes and {trailing} \
+                     trailing bytes; one WAV file is read per input, so the second one's \
+                     samples were not analysed (give the files one at a time)"
+                ),
+            });
+        }
+        read
     }
 
     /// Multiplies integer counts by `scale` instead of mapping them to [-1, 1) (physical units
@@ -357,7 +406,8 @@ impl<R: Read + Send> Source for WavSource<R> {
     }
 
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError> {
-        self.frames.read_block(max_frames, block)
+        let read = self.frames.read_block(max_frames, block);
+        self.end_of_data(read)
     }
 
     fn read_encoded_block(
@@ -365,7 +415,8 @@ impl<R: Read + Send> Source for WavSource<R> {
         max_frames: usize,
         out: &mut super::encoded::EncodedFrames,
     ) -> Option<Result<bool, SourceError>> {
-        Some(self.frames.read_encoded_block(max_frames, out))
+        let read = self.frames.read_encoded_block(max_frames, out);
+        Some(self.end_of_data(read))
     }
 
     fn allow_block_bytes(&mut self, bytes: usize) {

@@ -297,6 +297,87 @@ fn a_wav_file_declared_raw_is_refused_not_read_as_samples() {
         o.status
     );
     assert!(e.contains("drop --raw"), "{e}");
+    // Piped (`cat rec.wav | dampscope analyze - --raw f32 …`): the header was read as samples.
+    let wav = std::fs::read(&path).unwrap();
+    clean_failure(&redirected, &wav, &[1, 2], &["drop --raw"]);
+}
+
+/// Found by the contract probe: `cat a.wav b.wav | dampscope analyze -` analysed the first
+/// file, left the second unread and exited 0 without a word. Now the run says so and exits 3;
+/// the rows are the first file's alone, bit for bit, none flagged. A trailing chunk inside
+/// the first file's RIFF chunk, or bytes after it that are no WAV header, change nothing.
+#[test]
+fn a_second_wav_file_after_the_first_is_reported_not_ignored() {
+    let dir = fresh_dir("concatenated-wav");
+    let pcm = |f_hz: f64| -> Vec<u8> {
+        (0..12000)
+            .map(|i| {
+                let t = f64::from(i) / 4000.0;
+                ((-4.0 * t).exp() * (2.0 * std::f64::consts::PI * f_hz * t).sin() * 2e4) as i16
+            })
+            .flat_map(|s| s.to_le_bytes())
+            .collect()
+    };
+    let (a, b) = (pcm(300.0), pcm(700.0));
+    let first = wav_header(1, a.len() as u32, &a);
+    let second = wav_header(1, b.len() as u32, &b);
+    // The first file with a LIST chunk after its data, counted in its RIFF size.
+    let mut listed = first.clone();
+    listed.extend_from_slice(b"LIST\x05\x00\x00\x00abcde\x00");
+    let riff = u32::from_le_bytes(listed[4..8].try_into().unwrap()) + 14;
+    listed[4..8].copy_from_slice(&riff.to_le_bytes());
+    let analyze = |name: &str, bytes: &[u8]| {
+        let path = dir.join(name);
+        std::fs::write(&path, bytes).unwrap();
+        let p = path.to_str().unwrap().to_string();
+        let by_path = dampscope(&["analyze", &p, "--bands", "octave"], b"");
+        let redirected = std::process::Command::new(env!("CARGO_BIN_EXE_dampscope"))
+            .args(["analyze", "-", "--bands", "octave"])
+            .stdin(std::fs::File::open(&path).unwrap())
+            .output()
+            .unwrap();
+        let piped = dampscope(&["analyze", "-", "--bands", "octave"], bytes);
+        [by_path, redirected, piped]
+    };
+    let alone = analyze("a.wav", &first)[0].clone();
+    assert_eq!(alone.status.code(), Some(0));
+    let rows = String::from_utf8_lossy(&alone.stdout).to_string();
+    // The first file's decay has a damping ratio (column 13) in some band.
+    let damping = |l: &str| {
+        l.split(',')
+            .nth(13)
+            .is_some_and(|d| d.parse::<f64>().is_ok())
+    };
+    assert!(rows.lines().skip(1).any(damping), "{rows}");
+    for (name, bytes, another) in [
+        ("ab.wav", [first.clone(), second.clone()].concat(), true),
+        (
+            "listed-b.wav",
+            [listed.clone(), second.clone()].concat(),
+            true,
+        ),
+        ("listed.wav", listed.clone(), false),
+        (
+            "junk.wav",
+            [first.clone(), b"not a header at all".to_vec()].concat(),
+            false,
+        ),
+    ] {
+        for (how, o) in ["path", "redirected", "piped"]
+            .iter()
+            .zip(analyze(name, &bytes))
+        {
+            let e = String::from_utf8_lossy(&o.stderr);
+            let want = if another { 3 } else { 0 };
+            assert_eq!(o.status.code(), Some(want), "{name} {how}: {e}");
+            assert_eq!(
+                e.contains("another WAV file follows"),
+                another,
+                "{name} {how}: {e}"
+            );
+            assert_eq!(String::from_utf8_lossy(&o.stdout), rows, "{name} {how}");
+        }
+    }
 }
 
 /// Found by the contract probe: `resynth --fmax 0` was reported as "invalid setting --model:
