@@ -98,6 +98,13 @@ pub trait DecayEstimator: Send {
     /// Total energy of the frames so far (the leakage test compares bands by it).
     fn total_energy(&self) -> f64;
 
+    /// How far below the decay curve's start the fit reaches (the evaluation range's lower
+    /// limit, dB > 0; 35 for T30): the leakage test holds what slower bands leak into this one
+    /// to that depth. `None`: only total energies are compared.
+    fn fit_depth_db(&self) -> Option<f64> {
+        None
+    }
+
     /// The frame energies the estimate uses: from the band's own start (its energy within
     /// [`schroeder::DECAY_START_LEVEL_DB`] of its peak) on. The test for merged hits reads it.
     fn decay_energies(&self) -> &[f64];

@@ -73,6 +73,10 @@ impl DecayEstimator for BatchSchroeder {
         self.frequencies_hz.clear();
     }
 
+    fn fit_depth_db(&self) -> Option<f64> {
+        Some(-self.settings.range.limits_db().1)
+    }
+
     fn total_energy(&self) -> f64 {
         self.energies.iter().sum()
     }

@@ -292,6 +292,10 @@ impl DecayEstimator for OnlineSchroeder {
         self.running = CompensatedSum::default();
     }
 
+    fn fit_depth_db(&self) -> Option<f64> {
+        Some(-self.settings.range.limits_db().1)
+    }
+
     fn total_energy(&self) -> f64 {
         self.running.value()
     }

@@ -90,6 +90,16 @@ pub(super) fn judge_bands<E: DecayEstimator>(
             hi_hz: b.hi_hz,
             center_hz: b.center_hz,
             energy: e.total_energy(),
+            fit_depth_db: e.fit_depth_db(),
+        })
+        .collect();
+    // Decided on the decay times as fitted: a band whose decay the leakage test withholds may
+    // be filter-limited too (an empty band's onset ringing under a slower mode's skirt), and
+    // says so.
+    let filter_limited: Vec<bool> = (estimates.iter().enumerate())
+        .map(|(b, est)| {
+            est.t60_s
+                .is_some_and(|t60| t60 < front_end.shortest_t60_s(b))
         })
         .collect();
     flag_leakage(estimates, &levels, &FrontEndLeakage(front_end));
@@ -97,10 +107,7 @@ pub(super) fn judge_bands<E: DecayEstimator>(
         if band.width_hz() < resolution_hz * (1.0 - 1e-9) && !est.has(Flag::NoEnergy) {
             est.withhold(Flag::BelowResolution);
         }
-        if est
-            .t60_s
-            .is_some_and(|t60| t60 < front_end.shortest_t60_s(b))
-        {
+        if filter_limited[b] {
             est.withhold(Flag::FilterLimited);
         }
     }

@@ -117,8 +117,11 @@ fn rigid_walls_rir_t20_t30_within_3_percent_where_modes_are_and_leakage_elsewher
 /// realisation, not the bank — on the noise-free RIR every octave is within 0.1 % — and pyrato
 /// 1.1.0 itself (Chu + Lundeby on pyfar's octave filters, same script) gives 1.027 s / 1.977 s
 /// there, 1.080 s at 125 Hz and 0.970 s at 250 Hz. So 500 Hz is only pinned within 5 %.
-/// With `noise_margin_db` 5 the 125 and 250 Hz octaves get numbers, flagged, up to 11 % off:
-/// why the ISO margin is the default.
+/// With `noise_margin_db` 5 the 125 and 250 Hz octaves got numbers, flagged, up to 11 % off:
+/// why the ISO margin is the default. Since the leakage test also holds a band's curve at its
+/// fit's end against what the other bands leak then (test 4 of `decay::leakage`), the 250 Hz
+/// octave, which holds the room's first few modes, is withheld as `leakage`: at −25 dB its
+/// curve is within 6 dB of what the 500 Hz and 1 kHz octaves' modes leak into it as tones.
 #[test]
 fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
     let text = reference("analytic_rir_psnr50_2D.csv");
@@ -165,7 +168,10 @@ fn noisy_rir_t30_noise_limited_t20_at_1_khz_within_3_percent() {
             ..Default::default()
         };
         for (band, e) in bands.iter().zip(analyze_decay(x, &mut fe, &relaxed)) {
-            if band.nominal_hz == 125.0 || band.nominal_hz == 250.0 {
+            if band.nominal_hz == 250.0 {
+                assert!(e.t60_s.is_none() && e.has(Flag::Leakage), "{:?}", e.flags);
+            }
+            if band.nominal_hz == 125.0 {
                 let t = e.t60_s.expect("a number with a 5 dB margin");
                 assert!(rel_err(t, t60) < 0.15, "{} Hz: {t}", band.nominal_hz);
                 assert!(e.has(Flag::NoiseCompensated) && e.has(Flag::TruncationBias));
