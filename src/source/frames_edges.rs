@@ -23,9 +23,10 @@ impl<R: Read> FrameReader<R> {
     }
 
     /// Up to `max` bytes of the input that come `skip` bytes after the frames handed out: a
-    /// mapped file's, or a stream's as they arrive (a stream that pauses for
-    /// [`STREAM_PAUSE_MS`](crate::source::STREAM_PAUSE_MS) is taken to have nothing more, so that a writer keeping its end open
-    /// is not waited for). Fewer at the end of the input, none when `skip` exceeds
+    /// mapped file's, or a stream's as they arrive. A watched stream that pauses for
+    /// [`STREAM_PAUSE_MS`](crate::source::STREAM_PAUSE_MS) is taken to have nothing more, so
+    /// that a writer keeping its end open is not waited for; an unwatched reader is read until
+    /// it ends or gives the bytes. Fewer at the end of the input, none when `skip` exceeds
     /// [`MAX_SKIP_BYTES`]; a failed read ends the look. Call it once the frames are all out.
     pub(crate) fn bytes_past(&mut self, skip: u64, max: usize) -> Vec<u8> {
         if skip > MAX_SKIP_BYTES {
