@@ -1,6 +1,8 @@
 //! How estimates are made from a decay curve: the settings of [`super::estimate`] and their
 //! defaults (re-exported there).
 
+#[cfg(doc)]
+use super::flags::Flag;
 use super::range::EvaluationRange;
 
 /// How estimates are made from a decay curve.
