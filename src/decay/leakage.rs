@@ -332,14 +332,15 @@ mod tests {
         );
     }
 
-    /// Found by the leakage probe (issue 11 session, 2026-11-28): a 50 Hz band 5.6 dB below a
-    /// mode 2.5 bandwidths away that decays 3.8× slower read T60 10 % long without a flag: 27 dB
-    /// clear of the leak in total energy, but the leak, decaying slower, reached its curve at
-    /// the fit's end. Test 4 flags it; without a fit depth, or with a faster source, it stands.
+    /// Found by `scripts/leakage_probe.py` (2026-11-28): a 50 Hz octave-bank band beside a mode
+    /// 5.6 dB stronger, 2.3 band widths away and decaying 3.8× slower read T60 10 % long without
+    /// a flag: 27 dB clear of the leak in total energy, but the leak, decaying slower, reached
+    /// its curve at the fit's end. Test 4 flags it; without a fit depth, at a shallower fit's
+    /// end, or with a source as fast as the band, it stands.
     #[test]
     fn a_slower_source_that_reaches_the_end_of_the_fit_is_leakage() {
-        // Band 1 (1e-3 of band 0 in total) gets 10^(−3.0) of band 0's mode (the toy's gain 30 Hz
-        // away): by energy alone 0 dB clear, so give it 10^(2.7) more: 27 dB clear.
+        // Band 0's mode leaks 10^(−3) of its energy into band 1 (the toy's gain 30 Hz away);
+        // band 1 holds 10^(−0.3): 27 dB clear of the leak in total energy.
         let bands = |depth: Option<f64>| {
             let mut b = [band(45.0, 55.0, 1.0), band(75.0, 85.0, 10f64.powf(-0.3))];
             b[1].fit_depth_db = depth;
