@@ -263,6 +263,9 @@ pub struct WavSource<R: Read + Send> {
 /// Bytes looked at after a file's RIFF chunk for the header of another.
 const NEXT_HEADER_BYTES: usize = 12;
 
+/// The RIFF chunk's id and size field, which some writers count in its size.
+const RIFF_HEADER_BYTES: u64 = 8;
+
 impl WavSource<io::BufReader<std::fs::File>> {
     /// A WAV file: its header read from `file` (which must be at the file's start), its samples
     /// decoded straight from the page cache when the file is a regular one that can be mapped
@@ -344,19 +347,31 @@ impl<R: Read + Send> WavSource<R> {
         let Some(trailing) = self.header.trailing_bytes else {
             return read;
         };
-        let next = self.frames.bytes_past(trailing, NEXT_HEADER_BYTES);
-        if next.len() == NEXT_HEADER_BYTES && next.starts_with(b"RIFF") && &next[8..] == b"WAVE" {
-            let data = self.header.data_bytes.unwrap_or(0);
-            return Err(SourceError::LeftUnread {
-                what: self.frames.what().to_string(),
-                detail: format!(
-                    "another WAV file follows this one's {data} data bytes and {trailing} \
-                     trailing bytes; one WAV file is read per input, so the second one's \
-                     samples were not analysed (give the files one at a time)"
-                ),
-            });
-        }
-        read
+        // Writers that count the RIFF chunk's own 8-byte header in its size put the next file
+        // 8 bytes before where the size says the chunk ends: both places are looked at.
+        let back = trailing.min(RIFF_HEADER_BYTES);
+        let next = self
+            .frames
+            .bytes_past(trailing - back, back as usize + NEXT_HEADER_BYTES);
+        let is_header = |b: &[u8]| {
+            b.len() >= NEXT_HEADER_BYTES && b.starts_with(b"RIFF") && &b[8..12] == b"WAVE"
+        };
+        let at = [back as usize, 0]
+            .into_iter()
+            .find(|&k| next.get(k..).is_some_and(is_header));
+        let Some(at) = at else {
+            return read;
+        };
+        let data = self.header.data_bytes.unwrap_or(0);
+        let after = trailing - back + at as u64;
+        Err(SourceError::LeftUnread {
+            what: self.frames.what().to_string(),
+            detail: format!(
+                "another WAV file follows this one's {data} data bytes, {after} bytes after \
+                 them; one WAV file is read per input, so the second one's samples were not \
+                 analysed (give the files one at a time)"
+            ),
+        })
     }
 
     /// Multiplies integer counts by `scale` instead of mapping them to [-1, 1) (physical units

@@ -304,8 +304,9 @@ fn a_wav_file_declared_raw_is_refused_not_read_as_samples() {
 
 /// Found by the contract probe: `cat a.wav b.wav | dampscope analyze -` analysed the first
 /// file, left the second unread and exited 0 without a word. Now the run says so and exits 3;
-/// the rows are the first file's alone, bit for bit, none flagged. A trailing chunk inside
-/// the first file's RIFF chunk, or bytes after it that are no WAV header, change nothing.
+/// the rows are the first file's alone, bit for bit, none flagged; also when the first file's
+/// RIFF size counts its own 8-byte header. A trailing chunk inside the first file's RIFF chunk,
+/// or bytes after it that are no WAV header, change nothing.
 #[test]
 fn a_second_wav_file_after_the_first_is_reported_not_ignored() {
     let dir = fresh_dir("concatenated-wav");
@@ -326,6 +327,10 @@ fn a_second_wav_file_after_the_first_is_reported_not_ignored() {
     listed.extend_from_slice(b"LIST\x05\x00\x00\x00abcde\x00");
     let riff = u32::from_le_bytes(listed[4..8].try_into().unwrap()) + 14;
     listed[4..8].copy_from_slice(&riff.to_le_bytes());
+    // A writer that counts the RIFF chunk's 8-byte header in its size.
+    let mut overcounted = first.clone();
+    let riff = u32::from_le_bytes(overcounted[4..8].try_into().unwrap()) + 8;
+    overcounted[4..8].copy_from_slice(&riff.to_le_bytes());
     let analyze = |name: &str, bytes: &[u8]| {
         let path = dir.join(name);
         std::fs::write(&path, bytes).unwrap();
@@ -354,6 +359,11 @@ fn a_second_wav_file_after_the_first_is_reported_not_ignored() {
         (
             "listed-b.wav",
             [listed.clone(), second.clone()].concat(),
+            true,
+        ),
+        (
+            "overcounted-b.wav",
+            [overcounted, second.clone()].concat(),
             true,
         ),
         ("listed.wav", listed.clone(), false),
