@@ -53,6 +53,7 @@ mod regression_memory_limits;
 mod regression_merged_hits;
 mod regression_quantized_recordings;
 mod regression_row_order;
+mod regression_slow_neighbour;
 mod regression_sparse_hits;
 mod regression_two_hits;
 mod regression_worse_updates;
