@@ -7,15 +7,40 @@
 
 use crate::common::{decaying_sines, fresh_dir, run_dampscope as dampscope, write_float_wav};
 
-/// The probe's cases that gave an unflagged T60 more than 5 % off (seed 7): the band's mode
-/// (f, T60) and its neighbour (f, T60, level above the band's mode in dB).
-const CASES: [((f64, f64), (f64, f64, f64)); 6] = [
-    ((311.3, 0.99), (403.8, 2.23, 10.5)),
-    ((289.6, 0.97), (417.2, 1.95, 14.0)),
-    ((313.6, 0.66), (389.7, 1.10, 13.2)),
-    ((310.9, 0.93), (426.8, 3.55, 5.6)),
-    ((299.2, 0.97), (155.7, 4.26, 23.4)),
-    ((313.7, 0.33), (383.1, 1.49, 8.4)),
+/// One of the probe's cases: the band's mode and its stronger, slower neighbour.
+struct Case {
+    f_hz: f64,
+    t60_s: f64,
+    neighbour_hz: f64,
+    neighbour_t60_s: f64,
+    /// The neighbour's level above the band's mode, dB.
+    level_db: f64,
+}
+
+const fn case(
+    f_hz: f64,
+    t60_s: f64,
+    neighbour_hz: f64,
+    neighbour_t60_s: f64,
+    level_db: f64,
+) -> Case {
+    Case {
+        f_hz,
+        t60_s,
+        neighbour_hz,
+        neighbour_t60_s,
+        level_db,
+    }
+}
+
+/// The probe's cases that gave an unflagged T60 more than 5 % off (seed 7).
+const CASES: [Case; 6] = [
+    case(311.3, 0.99, 403.8, 2.23, 10.5),
+    case(289.6, 0.97, 417.2, 1.95, 14.0),
+    case(313.6, 0.66, 389.7, 1.10, 13.2),
+    case(310.9, 0.93, 426.8, 3.55, 5.6),
+    case(299.2, 0.97, 155.7, 4.26, 23.4),
+    case(313.7, 0.33, 383.1, 1.49, 8.4),
 ];
 
 const FRONT_ENDS: [&[&str]; 3] = [
@@ -62,7 +87,14 @@ fn band_275(
 fn a_slower_stronger_neighbour_gives_no_unflagged_long_t60() {
     let dir = fresh_dir("slow-neighbour");
     for front_end in FRONT_ENDS {
-        for ((f, t60), (fb, t60b, level_db)) in CASES {
+        for Case {
+            f_hz: f,
+            t60_s: t60,
+            neighbour_hz: fb,
+            neighbour_t60_s: t60b,
+            level_db,
+        } in CASES
+        {
             // Alone, the band's mode is measured within 2 %: the cases are not beyond reach.
             let (alone, _) = band_275(&dir, &[(f, t60, 1.0)], front_end);
             let alone = alone.unwrap_or_else(|| panic!("{front_end:?} {f} Hz alone: no number"));
