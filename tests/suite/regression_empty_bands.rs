@@ -5,7 +5,7 @@
 //! empty bands from 425 to 1425 Hz gave D 0.035–0.12, T20 ≈ 0.024 s in every one — the band
 //! filters' own response to the onset (B·T60 ≈ 1.2).
 
-use crate::common::run_dampscope as dampscope;
+use crate::common::{analyze_rows, run_dampscope as dampscope};
 
 /// The rows of `analyze -` on a 3 s, 8 kHz decay of 210 Hz at ζ 1 % (`snr_db`: noise on mean
 /// power, `None` for none): (f_lo, damping_ratio_corrected if any, flags).
@@ -26,25 +26,13 @@ fn rows(front_end: &str, snr_db: Option<&str>) -> Vec<(f64, Option<f64>, String)
     }
     let wav = dampscope(&synth, b"");
     assert!(wav.status.success());
-    let o = dampscope(&["analyze", "-", "--front-end", front_end], &wav.stdout);
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let mut table = csv::Reader::from_reader(o.stdout.as_slice());
-    let header: Vec<String> = table.headers().unwrap().iter().map(String::from).collect();
-    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let (lo, d, flags) = (col("f_lo"), col("damping_ratio_corrected"), col("flags"));
-    table
-        .records()
+    analyze_rows(&["analyze", "-", "--front-end", front_end], &wav.stdout)
+        .into_iter()
         .map(|r| {
-            let r = r.unwrap();
             (
-                r[lo].parse().unwrap(),
-                r[d].parse().ok(),
-                r[flags].to_string(),
+                r["f_lo"].parse().unwrap(),
+                r["damping_ratio_corrected"].parse().ok(),
+                r["flags"].clone(),
             )
         })
         .collect()

@@ -5,7 +5,7 @@
 //! the T30 fit. The leakage test now also holds the band's curve at its fit's depth against
 //! what the slower bands leak then (test 4 of `decay::leakage`).
 
-use crate::common::{decaying_sines, fresh_dir, run_dampscope as dampscope, write_float_wav};
+use crate::common::{analyze_rows, decaying_sines, fresh_dir, write_float_wav};
 
 /// One of the probe's cases: the band's mode and its stronger, slower neighbour.
 struct Case {
@@ -64,23 +64,12 @@ fn band_275(
     write_float_wav(&path, &decaying_sines(&sines, 4096.0, seconds), 4096);
     let mut args = vec!["analyze", path.to_str().unwrap(), "--bands", "75:575:50"];
     args.extend(front_end);
-    let o = dampscope(&args, b"");
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let mut table = csv::Reader::from_reader(o.stdout.as_slice());
-    let header: Vec<String> = table.headers().unwrap().iter().map(String::from).collect();
-    let col = |name: &str| header.iter().position(|h| h == name).unwrap();
-    let (lo, t60, flags) = (col("f_lo"), col("t60_s"), col("flags"));
-    let row = table
-        .records()
-        .map(|r| r.unwrap())
-        .find(|r| r[lo].parse::<f64>().unwrap() == 275.0)
+    let rows = analyze_rows(&args, b"");
+    let row = rows
+        .iter()
+        .find(|r| r["f_lo"].parse::<f64>() == Ok(275.0))
         .unwrap();
-    (row[t60].parse().ok(), row[flags].to_string())
+    (row["t60_s"].parse().ok(), row["flags"].clone())
 }
 
 #[test]

@@ -102,7 +102,22 @@ pub fn write_float_wav(path: &std::path::Path, x: &[f64], fs_hz: u32) {
 
 /// The rows of a CSV file with a header, each as column name → text.
 pub fn csv_rows(path: &std::path::Path) -> Vec<std::collections::HashMap<String, String>> {
-    let mut r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let r = csv::Reader::from_path(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    rows_of(r)
+}
+
+/// The rows of `dampscope ARGS` (with `stdin` piped in), which must exit 0, each as column
+/// name → text.
+pub fn analyze_rows(args: &[&str], stdin: &[u8]) -> Vec<std::collections::HashMap<String, String>> {
+    let o = run_dampscope(args, stdin);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{args:?}: {e}");
+    rows_of(csv::Reader::from_reader(o.stdout.as_slice()))
+}
+
+fn rows_of<R: std::io::Read>(
+    mut r: csv::Reader<R>,
+) -> Vec<std::collections::HashMap<String, String>> {
     let header: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
     r.records()
         .map(|rec| {
