@@ -10,7 +10,7 @@ use crate::output::{write_csv_file, TableFormat, TableWriter};
 use crate::pipeline;
 use crate::plan::PreparedRun;
 use crate::source::open::open_input;
-use crate::source::{Source, SourceError};
+use crate::source::Source;
 
 /// Estimate decay times and damping ratios per band and channel (file, directory or `-`).
 #[derive(Debug, clap::Args)]
@@ -55,18 +55,14 @@ pub fn prepare(
 /// part of the input was damaged).
 pub fn exit_code_of(summary: &pipeline::RunSummary) -> i32 {
     let mut code = EXIT_OK;
-    match &summary.input_error {
-        Some(e @ SourceError::LeftUnread { .. }) => {
-            eprintln!("dampscope: warning: {e}; the results written are those of what was read");
-            code = EXIT_PARTIAL;
-        }
-        Some(e) => {
-            eprintln!(
-                "dampscope: warning: {e}; results up to that point were written (flag input_truncated)"
-            );
-            code = EXIT_PARTIAL;
-        }
-        None => {}
+    if let Some(e) = &summary.input_error {
+        let said = if e.cuts_decays_short() {
+            "results up to that point were written (flag input_truncated)"
+        } else {
+            "the results written are those of what was read"
+        };
+        eprintln!("dampscope: warning: {e}; {said}");
+        code = EXIT_PARTIAL;
     }
     if !summary.internal_error_channels.is_empty() {
         eprintln!(

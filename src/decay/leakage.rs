@@ -128,7 +128,7 @@ pub fn flag_leakage(
             leaking[b] |= e <= margin * flat;
         }
         if !leaking[b] {
-            leaking[b] = leaks_at_fit_end(b, bands, &estimates[b], &sources, model);
+            leaking[b] = leaks_at_fit_end(b, bands, &estimates[b], &sources, (model, margin));
         }
         if leaking[b] {
             continue;
@@ -169,7 +169,7 @@ fn spread_leak(
 }
 
 /// Test 4 for band `b`: whether what the `sources` of known decay rate leak into it is within
-/// the margin of its own curve at the depth its fit reaches. The gain bounds clear most bands;
+/// `margin` (an energy ratio) of its own curve at the depth its fit reaches. The gain bounds clear most bands;
 /// the others pay for the exact gains. Each source leaks as a tone at its dominant frequency:
 /// test 2's flat model (less leakage from a tone near its band's edge) let a 50 Hz band beside
 /// a mode 2 Hz inside its neighbour's edge through with T60 10 % long, and on the measured
@@ -179,7 +179,7 @@ fn leaks_at_fit_end(
     bands: &[BandLevel],
     estimate: &DecayEstimate,
     sources: &[(usize, f64, f64, f64)],
-    model: &dyn LeakageModel,
+    (model, margin): (&dyn LeakageModel, f64),
 ) -> bool {
     let e = bands[b].energy;
     let (Some(depth_db), Some(t60_s)) = (bands[b].fit_depth_db, estimate.t60_s) else {
@@ -188,7 +188,6 @@ fn leaks_at_fit_end(
     if !(depth_db > 0.0 && t60_s.is_finite() && t60_s > 0.0) {
         return false;
     }
-    let margin = 10f64.powf(LEAKAGE_MARGIN_DB / 10.0);
     let own_at_end = e * 10f64.powf(-depth_db / 10.0);
     let t_end_s = depth_db / 60.0 * t60_s;
     // A source's leak is an energy decaying as e^{−2σt}: its share left at the fit's end.

@@ -245,10 +245,7 @@ pub fn run_with(
             // An input without a single sample frame is an error, not a run of empty rows:
             // the workers stop without finishing their channels.
             if !matches!(failure, Some(SourceError::Empty { .. })) {
-                // Input left unread after the source's end cuts no decay short.
-                let truncated = failure
-                    .as_ref()
-                    .is_some_and(|e| !matches!(e, SourceError::LeftUnread { .. }));
+                let truncated = failure.as_ref().is_some_and(SourceError::cuts_decays_short);
                 for tx in &worker_txs {
                     let _ = tx.send(ToWorker::End { truncated });
                 }

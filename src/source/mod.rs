@@ -89,6 +89,14 @@ pub enum SourceError {
     },
 }
 
+impl SourceError {
+    /// Whether the error cut the decays in progress short (their rows get `input_truncated`):
+    /// every error but input left unread after the source's end.
+    pub fn cuts_decays_short(&self) -> bool {
+        !matches!(self, SourceError::LeftUnread { .. })
+    }
+}
+
 /// Sample rate and channel names of a source.
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SignalInfo {

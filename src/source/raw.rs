@@ -84,14 +84,11 @@ pub struct RawSource<R: Read + Send> {
 /// Bytes a channel costs a source before any sample: its name and its place in the decoder.
 const RAW_BYTES_PER_CHANNEL: f64 = 64.0;
 
-/// Bytes that tell a WAV file: `RIFF`, the chunk's size, `WAVE`.
-const WAV_MAGIC_BYTES: usize = 12;
-
 /// Refuses, as raw samples, input that begins with a WAV header (`RIFF`…`WAVE`): its header
 /// would be read as samples and its rate and channel count replaced by the options'. No raw
 /// recording begins with those twelve bytes by chance (they read as f32 12690.1, …, 3428.1).
 fn refuse_wav_header(what: &str, first: &[u8]) -> Result<(), SourceError> {
-    if first.len() >= WAV_MAGIC_BYTES && first.starts_with(b"RIFF") && &first[8..12] == b"WAVE" {
+    if super::wav::starts_like_wav(first) {
         return Err(SourceError::UnrecognisedFormat {
             what: what.to_string(),
             detail: "raw samples were declared (--raw), but the input is a WAV file (it starts \
@@ -141,7 +138,7 @@ impl<R: Read + Send> RawSource<R> {
             mapped
         });
         if let Some(m) = &mapped {
-            refuse_wav_header(&what, m.slice(0..m.len().min(WAV_MAGIC_BYTES)))?;
+            refuse_wav_header(&what, m.slice(0..m.len().min(super::wav::WAV_MAGIC_BYTES)))?;
         }
         let streamed = mapped.is_none();
         let fd = file.as_fd().as_raw_fd();
@@ -153,7 +150,7 @@ impl<R: Read + Send> RawSource<R> {
         let what = source.frames.what().to_string();
         let first = source
             .frames
-            .first_bytes(WAV_MAGIC_BYTES)
+            .first_bytes(super::wav::WAV_MAGIC_BYTES)
             .map_err(|e| SourceError::Io {
                 what: what.clone(),
                 source: e,

@@ -159,12 +159,20 @@ fn parse_fmt(b: &[u8], what: &str) -> Result<(u32, usize, Codec), SourceError> {
     Ok((rate, channels, codec))
 }
 
+/// Bytes that tell a WAV file: `RIFF`, the chunk's size, `WAVE`.
+pub(crate) const WAV_MAGIC_BYTES: usize = 12;
+
+/// Whether `bytes` begin as a WAV file does (`RIFF`, four bytes of size, `WAVE`).
+pub(crate) fn starts_like_wav(bytes: &[u8]) -> bool {
+    bytes.len() >= WAV_MAGIC_BYTES && bytes.starts_with(b"RIFF") && &bytes[8..12] == b"WAVE"
+}
+
 /// Reads a WAV header up to the start of the data chunk, skipping other chunks.
 /// Returns the header and the codec of the samples.
 fn read_header<R: Read>(r: &mut R, what: &str) -> Result<(WavHeader, Codec), SourceError> {
-    let mut riff = [0u8; 12];
+    let mut riff = [0u8; WAV_MAGIC_BYTES];
     read_exact_or(r, &mut riff, what, "RIFF header")?;
-    if &riff[0..4] != b"RIFF" || &riff[8..12] != b"WAVE" {
+    if !starts_like_wav(&riff) {
         return Err(SourceError::UnrecognisedFormat {
             what: what.to_string(),
             detail: format!(
@@ -260,9 +268,6 @@ pub struct WavSource<R: Read + Send> {
     looked_past: bool,
 }
 
-/// Bytes looked at after a file's RIFF chunk for the header of another.
-const NEXT_HEADER_BYTES: usize = 12;
-
 /// The RIFF chunk's id and size field, which some writers count in its size.
 const RIFF_HEADER_BYTES: u64 = 8;
 
@@ -352,13 +357,10 @@ impl<R: Read + Send> WavSource<R> {
         let back = trailing.min(RIFF_HEADER_BYTES);
         let next = self
             .frames
-            .bytes_past(trailing - back, back as usize + NEXT_HEADER_BYTES);
-        let is_header = |b: &[u8]| {
-            b.len() >= NEXT_HEADER_BYTES && b.starts_with(b"RIFF") && &b[8..12] == b"WAVE"
-        };
+            .bytes_past(trailing - back, back as usize + WAV_MAGIC_BYTES);
         let at = [back as usize, 0]
             .into_iter()
-            .find(|&k| next.get(k..).is_some_and(is_header));
+            .find(|&k| next.get(k..).is_some_and(starts_like_wav));
         let Some(at) = at else {
             return read;
         };
