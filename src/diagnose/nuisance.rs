@@ -6,8 +6,15 @@
 //!   grow as (kh)², and k² ∝ f for bending waves);
 //! - the model's own discretisation pattern: hexahedra err by direction (a mode bending along
 //!   x errs unlike one bending along y), so the error is not a function of f alone. The model
-//!   solved on a mesh twice as coarse shows that pattern (Richardson: the error at 2h is about
-//!   four times the error at h), see [`discretisation_pattern`].
+//!   solved on another mesh shows that pattern (Richardson: the error goes as h², so f_2h − f_h
+//!   and f_h − f_h/2 are both proportional to the model's own error), see
+//!   [`discretisation_pattern`]. A mesh half as fine is cheap, but its pattern is the model's
+//!   only while its elements still resolve the waves ([`RICHARDSON_MIN_ELEMENTS_PER_WAVELENGTH`]);
+//!   a coarse model is solved on a mesh twice as fine instead. Found on a 1 × 1.5 m plate on
+//!   12 × 18 × 2 against recordings of a 36 × 54 × 2 one: the 6 × 9 mesh's pattern explained
+//!   almost nothing of the right model's mismatch (residual 0.43 → 0.40 % RMS around the other
+//!   columns, several modes unpaired), and a false stiffer region or point mass was named in
+//!   six of six recordings; the 24 × 36 mesh's pattern leaves 0.07 %.
 //!
 //! Measured against an independent Kirchhoff plate (scripts/kirchhoff_sim.py), the 32 × 48 × 2
 //! model's 18 modes below 160 Hz differ by 0.19 % RMS around an offset, 0.17 % around 1, f,
@@ -22,26 +29,77 @@ use crate::modal::Mode;
 use crate::sim::assembly::{assemble, sensors_at};
 use crate::sim::eigen::{lowest_modes, ModeRequest};
 use crate::sim::error::SimError;
-use crate::sim::model::SensorPosition;
+use crate::sim::model::{Model, SensorPosition};
+use crate::sim::resolution::elements_per_wavelength;
 
-/// The model's discretisation pattern per mode of `view` (below its range): ln(f_coarse/f)
-/// with the model solved on a mesh half as fine in x and y, modes paired by shape at
-/// `sensors`; 0 for a mode without a partner. Empty when the mesh is too coarse to halve.
+/// Fewest elements per bending wavelength, at the view's highest frequency, that a mesh half
+/// as fine as the model's must keep for its modes to show the model's pattern. Below it the
+/// error no longer goes as h²: the reference plate against its 64 × 96 mesh errs +2.2 % at 7.4
+/// elements per wavelength and +3.5 % at 6.0 (h² predicts ×1.52, measured ×1.59), +4.9 % at 4.7
+/// (h² predicts 5.5 %) and +5.8 % at 4.1 (6.7 %); [`crate::sim::resolution`] has the figures.
+pub const RICHARDSON_MIN_ELEMENTS_PER_WAVELENGTH: f64 = 6.0;
+
+/// The mesh whose modes show a model's discretisation pattern.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum PatternMesh {
+    /// Half as many elements along x and along y (cheap; needs a fine model).
+    HalfAsFine,
+    /// Twice as many along x and along y (four times the unknowns; for a coarse model).
+    TwiceAsFine,
+}
+
+impl PatternMesh {
+    /// Which mesh shows `model`'s pattern up to `fmax_hz`: the mesh half as fine while it keeps
+    /// [`RICHARDSON_MIN_ELEMENTS_PER_WAVELENGTH`], else the mesh twice as fine if its system
+    /// fits the memory budget; `None` when neither can.
+    pub fn for_model(model: &Model, fmax_hz: f64) -> Option<Self> {
+        let coarser = Self::HalfAsFine.mesh_of(model);
+        if model.mesh.nx >= 8
+            && model.mesh.ny >= 8
+            && elements_per_wavelength(&coarser, fmax_hz)
+                .is_some_and(|n| n >= RICHARDSON_MIN_ELEMENTS_PER_WAVELENGTH)
+        {
+            return Some(Self::HalfAsFine);
+        }
+        crate::sim::limits::check_system_fits(&Self::TwiceAsFine.mesh_of(model))
+            .is_ok()
+            .then_some(Self::TwiceAsFine)
+    }
+
+    /// `model` on this mesh.
+    pub fn mesh_of(self, model: &Model) -> Model {
+        let mut other = model.clone();
+        match self {
+            Self::HalfAsFine => {
+                other.mesh.nx /= 2;
+                other.mesh.ny /= 2;
+            }
+            Self::TwiceAsFine => {
+                other.mesh.nx *= 2;
+                other.mesh.ny *= 2;
+            }
+        }
+        other
+    }
+}
+
+/// The model's discretisation pattern per mode of `view` (below its range): ln(f_coarser /
+/// f_finer) between the view's model and the model on the [`PatternMesh::for_model`] mesh,
+/// modes paired by shape at `sensors`; 0 for a mode without a partner. Empty when no mesh can
+/// show it.
 pub fn discretisation_pattern(
     view: &ModelView,
     sensors: &[SensorPosition],
 ) -> Result<Vec<f64>, SimError> {
-    let mut coarse = view.model.clone();
-    if coarse.mesh.nx < 8 || coarse.mesh.ny < 8 {
+    let Some(mesh) = PatternMesh::for_model(&view.model, view.fmax_hz) else {
         return Ok(Vec::new());
-    }
-    coarse.mesh.nx /= 2;
-    coarse.mesh.ny /= 2;
-    let sys = assemble(&coarse)?;
+    };
+    let other = mesh.mesh_of(&view.model);
+    let sys = assemble(&other)?;
     let modes = lowest_modes(&sys, ModeRequest::BelowHz(1.25 * view.fmax_hz))?;
-    let at = sensors_at(&coarse, sensors)?;
+    let at = sensors_at(&other, sensors)?;
     let own = view.shapes_at(sensors)?;
-    // The view's modes as "measured" modes, the coarse ones as the model: the pairing by
+    // The view's modes as "measured" modes, the other mesh's as the model: the pairing by
     // shape handles swapped orders.
     let as_measured: Vec<Mode> = own
         .iter()
@@ -72,8 +130,13 @@ pub fn discretisation_pattern(
         .collect();
     let (pairs, _, _) = pair_modes(&as_measured, &poles);
     let mut out = vec![0.0; own.len()];
+    // frequency_rel is f_view / f_other − 1: the coarser mesh's frequency over the finer's.
+    let sign = match mesh {
+        PatternMesh::HalfAsFine => -1.0,
+        PatternMesh::TwiceAsFine => 1.0,
+    };
     for p in pairs {
-        out[p.measured] = -p.frequency_rel.ln_1p();
+        out[p.measured] = sign * p.frequency_rel.ln_1p();
     }
     Ok(out)
 }

@@ -6,7 +6,7 @@
 //! second. The fit is measured before and after; the noise floor is reported apart.
 
 use super::evidence::{Evidence, ModelView};
-use super::fit::{compare_frfs, measures, FitBeforeAfter};
+use super::fit::{compare_frfs, fits_worse, measures, FitBeforeAfter};
 use super::hypothesis::Hypothesis;
 use super::mirror::resolve_images;
 use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
@@ -119,21 +119,6 @@ pub fn diagnose(
     settings: &DiagnoseSettings,
 ) -> Result<Diagnosis, DiagnoseError> {
     diagnose_with_progress(rec, sensors, model, settings, &mut |_| {})
-}
-
-/// Relative growth of the calibrated frequency RMS beyond which an update fits worse
-/// ([`fits_worse`]), unless its damping RMS fell by as much.
-const WORSE_FIT_RATIO: f64 = 1.1;
-
-/// Whether the model behind `after` fits the measured modes worse than the one behind `before`:
-/// its frequency RMS with the model-form calibration fitted away grew by more than
-/// [`WORSE_FIT_RATIO`], and its damping RMS did not fall by as much.
-fn fits_worse(before: &Evidence, after: &Evidence) -> bool {
-    let (b, a) = (measures(before, None), measures(after, None));
-    let frequency_worse =
-        a.frequency_rms_calibrated_hz > WORSE_FIT_RATIO * b.frequency_rms_calibrated_hz + 1e-9;
-    let damping_better = a.damping_rms * WORSE_FIT_RATIO < b.damping_rms;
-    frequency_worse && !damping_better
 }
 
 /// Whether a kind may still be found after `found` (one loss explanation at a time; no kind
@@ -484,7 +469,7 @@ pub fn diagnose_with_progress(
         let next = refined.apply(&view.model);
         let next_view = view_of(&view, &next, &refined)?;
         let next_ev = Evidence::gather(&modes, next_view.poles_at(sensors)?);
-        if fits_worse(&ev, &next_ev) {
+        if fits_worse(&ev, &next_ev, &pattern) {
             // The BIC chose it, yet the updated model fits the recordings worse than before: an
             // update that does not fit is not returned (found on a stiffer region of a small
             // plate: "stiffness_change" over the whole plate, frequency RMS 2.4 → 9.0 Hz).

@@ -27,6 +27,30 @@ pub fn bending_wavelength_m(material: &RegionMaterial, thickness_m: f64, f_hz: f
 /// modulus, where its waves are shortest); `None` when every region has at least
 /// [`MIN_ELEMENTS_PER_WAVELENGTH`].
 pub fn resolution_warning(model: &Model, fmax_hz: f64) -> Option<String> {
+    let (name, element_m, wavelength_m) = shortest_wave(model, fmax_hz)?;
+    let per_wavelength = wavelength_m / element_m;
+    (per_wavelength < MIN_ELEMENTS_PER_WAVELENGTH).then(|| {
+        let fine_hz = fmax_hz * (per_wavelength / MIN_ELEMENTS_PER_WAVELENGTH).powi(2);
+        format!(
+            "{per_wavelength:.1} elements per bending wavelength at {fmax_hz:.0} Hz in {name} \
+             (elements {:.1} mm, wavelength {:.1} mm), below {MIN_ELEMENTS_PER_WAVELENGTH:.0}: \
+             modes with waves that short come out high (more than ~6 %), and so does the \
+             response built on them; refine the mesh in plane or keep below {fine_hz:.0} Hz",
+            1e3 * element_m,
+            1e3 * wavelength_m
+        )
+    })
+}
+
+/// Elements per bending wavelength at `fmax_hz` in the region of `model` whose waves are
+/// shortest (the plate or a patch); `None` for a frequency that is not positive and finite.
+pub fn elements_per_wavelength(model: &Model, fmax_hz: f64) -> Option<f64> {
+    shortest_wave(model, fmax_hz).map(|(_, element_m, wavelength_m)| wavelength_m / element_m)
+}
+
+/// The region with the shortest bending waves at `fmax_hz`: its name, the mesh's longest
+/// element side and the wavelength, m.
+fn shortest_wave(model: &Model, fmax_hz: f64) -> Option<(String, f64, f64)> {
     if !(fmax_hz.is_finite() && fmax_hz > 0.0) {
         return None;
     }
@@ -47,18 +71,7 @@ pub fn resolution_warning(model: &Model, fmax_hz: f64) -> Option<String> {
             )
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))?;
-    let per_wavelength = wavelength_m / element_m;
-    (per_wavelength < MIN_ELEMENTS_PER_WAVELENGTH).then(|| {
-        let fine_hz = fmax_hz * (per_wavelength / MIN_ELEMENTS_PER_WAVELENGTH).powi(2);
-        format!(
-            "{per_wavelength:.1} elements per bending wavelength at {fmax_hz:.0} Hz in {name} \
-             (elements {:.1} mm, wavelength {:.1} mm), below {MIN_ELEMENTS_PER_WAVELENGTH:.0}: \
-             modes with waves that short come out high (more than ~6 %), and so does the \
-             response built on them; refine the mesh in plane or keep below {fine_hz:.0} Hz",
-            1e3 * element_m,
-            1e3 * wavelength_m
-        )
-    })
+    Some((name, element_m, wavelength_m))
 }
 
 /// What a user should hear about `model` before its modes up to `fmax_hz` are computed: the
