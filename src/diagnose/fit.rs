@@ -77,55 +77,17 @@ fn calibrated_rms_hz(evidence: &Evidence) -> f64 {
 
 /// RMS of fₖ × (yₖ − its fit by 1, f, f² and `pattern` when it has one value per mode), Hz;
 /// NaN without modes.
-fn residual_rms_hz(f_hz: &[f64], y: &[f64], pattern: &[f64]) -> f64 {
+pub(super) fn residual_rms_hz(f_hz: &[f64], y: &[f64], pattern: &[f64]) -> f64 {
     if f_hz.is_empty() {
         return f64::NAN;
     }
     let r = super::nuisance::Nuisance::new(f_hz, pattern).residual(y);
-    (r.iter().zip(f_hz).map(|(r, f)| (r * f).powi(2)).sum::<f64>() / f_hz.len() as f64).sqrt()
-}
-
-/// Relative growth of the calibrated frequency RMS beyond which an update fits worse
-/// ([`fits_worse`]), unless its damping RMS fell by as much.
-const WORSE_FIT_RATIO: f64 = 1.1;
-
-/// Whether the model behind `after` fits the measured modes worse than the one behind `before`:
-/// its frequency RMS with the model-form nuisance fitted away (offset, trends in f and f², and
-/// `before`'s model's discretisation `pattern` per model mode, as the scorer profiles it) grew
-/// by more than [`WORSE_FIT_RATIO`], and its damping RMS did not fall by as much. Both are taken
-/// over the measured modes paired in both: an update that mixes a close pair of modes as the
-/// structure does pairs them anew, and the RMS of a larger set is no measure of fit (found on
-/// a point mass beside a close triple of a small plate: the triple paired only after the
-/// update, and the mass was rejected).
-pub fn fits_worse(before: &Evidence, after: &Evidence, pattern: &[f64]) -> bool {
-    let common: Vec<_> = before
-        .pairs
-        .iter()
-        .filter_map(|b| {
-            let a = after.pairs.iter().find(|a| a.measured == b.measured)?;
-            Some((b, a))
-        })
-        .collect();
-    let f_hz: Vec<f64> = common
-        .iter()
-        .map(|(b, _)| before.model[b.model].damped_frequency_hz)
-        .collect();
-    let pattern: Vec<f64> = if common.iter().all(|(b, _)| b.model < pattern.len()) {
-        common.iter().map(|(b, _)| pattern[b.model]).collect()
-    } else {
-        Vec::new()
-    };
-    let rms = |y: Vec<f64>| residual_rms_hz(&f_hz, &y, &pattern);
-    let frequency_before = rms(common.iter().map(|(b, _)| b.frequency_rel.ln_1p()).collect());
-    let frequency_after = rms(common.iter().map(|(_, a)| a.frequency_rel.ln_1p()).collect());
-    let damping_rms = |d: &mut dyn Iterator<Item = f64>| {
-        (d.map(|x| x * x).sum::<f64>() / common.len().max(1) as f64).sqrt()
-    };
-    let damping_before = damping_rms(&mut common.iter().map(|(b, _)| b.damping_diff));
-    let damping_after = damping_rms(&mut common.iter().map(|(_, a)| a.damping_diff));
-    let frequency_worse = frequency_after > WORSE_FIT_RATIO * frequency_before + 1e-9;
-    let damping_better = damping_after * WORSE_FIT_RATIO < damping_before;
-    frequency_worse && !damping_better
+    (r.iter()
+        .zip(f_hz)
+        .map(|(r, f)| (r * f).powi(2))
+        .sum::<f64>()
+        / f_hz.len() as f64)
+        .sqrt()
 }
 
 /// The recordings' FRFs on the DFT grid within the bands, ready for eq. 4.8.

@@ -15,7 +15,8 @@
 //! - [`mirror`]: images of a finding that the evidence cannot tell apart, settled by the shapes;
 //! - [`hypothesis`]: the change each finding makes to the model file (the update), and
 //!   [`refine`]: its size re-fitted through the re-solved model;
-//! - [`fit`]: the fit of a model to the recordings (modes and FRFs, eq. 4.8);
+//! - [`fit`]: the fit of a model to the recordings (modes and FRFs, eq. 4.8); [`fit_compare`]:
+//!   whether an update fits worse than the model as given;
 //! - [`procedure`]: runs it all and keeps what pays for its parameters; [`report`]: the
 //!   findings in `diagnosis.json` form and in plain words; [`output`]: the files of a
 //!   diagnosis (JSON, updated model, modes.csv, report.md, figures); [`workers`]: independent
@@ -25,6 +26,7 @@ pub mod boundary;
 pub mod damping;
 pub mod evidence;
 pub mod fit;
+pub mod fit_compare;
 pub mod hypothesis;
 pub mod mass;
 pub mod mirror;

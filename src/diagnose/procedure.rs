@@ -6,7 +6,8 @@
 //! second. The fit is measured before and after; the noise floor is reported apart.
 
 use super::evidence::{Evidence, ModelView};
-use super::fit::{compare_frfs, fits_worse, measures, FitBeforeAfter};
+use super::fit::{compare_frfs, measures, FitBeforeAfter};
+use super::fit_compare::fits_worse;
 use super::hypothesis::Hypothesis;
 use super::mirror::resolve_images;
 use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};

@@ -42,6 +42,7 @@ mod modal_identify;
 mod noise_handling;
 mod pyrato_reference;
 mod regression_channel_panic_isolated;
+mod regression_coarse_model;
 mod regression_contradictions;
 mod regression_double_hits;
 mod regression_empty_bands;
