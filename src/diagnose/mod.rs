@@ -17,12 +17,14 @@
 //!   [`refine`]: its size re-fitted through the re-solved model;
 //! - [`fit`]: the fit of a model to the recordings (modes and FRFs, eq. 4.8); [`fit_compare`]:
 //!   whether an update fits worse than the model as given;
+//! - [`candidates`]: one round's best explanation of each family, and its size settled;
 //! - [`procedure`]: runs it all and keeps what pays for its parameters; [`report`]: the
 //!   findings in `diagnosis.json` form and in plain words; [`output`]: the files of a
 //!   diagnosis (JSON, updated model, modes.csv, report.md, figures); [`workers`]: independent
 //!   re-solves on every core.
 
 pub mod boundary;
+pub mod candidates;
 pub mod damping;
 pub mod evidence;
 pub mod fit;

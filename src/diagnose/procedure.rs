@@ -5,6 +5,8 @@
 //! [`MAX_FINDINGS`]). The first finding is then weighed again against the model that has the
 //! second. The fit is measured before and after; the noise floor is reported apart.
 
+use super::boundary;
+use super::candidates::{candidates, rescan, settle_size};
 use super::evidence::{Evidence, ModelView};
 use super::fit::{compare_frfs, measures, FitBeforeAfter};
 use super::fit_compare::fits_worse;
@@ -14,11 +16,11 @@ use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
 use super::nuisance::discretisation_pattern;
 use super::refine::{self, refine, view_of};
 use super::regions::ModeShares;
-use super::report::{Diagnosis, FamilyScore, Finding, RunnerUp, REJECTED_FITS_WORSE};
+use super::report::{
+    Diagnosis, FamilyScore, Finding, RunnerUp, REJECTED_FITS_WORSE, REJECTED_NO_SIZE,
+};
 use super::score::{Candidate, Prediction, Scorer, DEFAULT_MODEL_FORM_SIGMA};
-use super::workers::parallel_map;
-use super::{boundary, damping, mass, stiffness, viscoelastic};
-use crate::modal::{identify, ModalError, ModalSettings, Mode, Recordings};
+use crate::modal::{identify, ModalError, ModalSettings, Recordings};
 use crate::sim::error::SimError;
 use crate::sim::model::{Model, SensorPosition};
 
@@ -121,165 +123,6 @@ pub fn diagnose(
 ) -> Result<Diagnosis, DiagnoseError> {
     diagnose_with_progress(rec, sensors, model, settings, &mut |_| {})
 }
-
-/// Whether a kind may still be found after `found` (one loss explanation at a time; no kind
-/// twice).
-fn allowed(kind: &str, found: &[Hypothesis]) -> bool {
-    let loss = |k: &str| {
-        matches!(
-            k,
-            "localized_damping" | "viscoelastic_damping" | "damping_law"
-        )
-    };
-    found
-        .iter()
-        .all(|h| h.kind() != kind && !(loss(h.kind()) && loss(kind)))
-}
-
-/// Every family's best candidate against `view`.
-fn candidates(
-    measured: &[Mode],
-    scorer: &Scorer,
-    view: &ModelView,
-    sensors: &[SensorPosition],
-    found: &[Hypothesis],
-    edges: &mut boundary::EdgeCache,
-    shares: &ModeShares,
-) -> Result<Vec<Candidate>, SimError> {
-    let mut out = Vec::new();
-    if allowed("added_mass", found) {
-        out.extend(mass::scan_point_mass(scorer, view)?);
-    }
-    if allowed("stiffness_change", found) {
-        out.push(stiffness::scan_stiffness(scorer, shares));
-    }
-    if allowed("localized_damping", found) {
-        out.push(damping::scan_localized_damping(scorer, shares));
-    }
-    if allowed("viscoelastic_damping", found) {
-        out.push(viscoelastic::scan_viscoelastic(
-            scorer,
-            shares,
-            view.model.material.youngs_modulus,
-        ));
-    }
-    if allowed("damping_law", found) {
-        out.extend(damping::fit_damping_laws(scorer, view)?);
-    }
-    if allowed("boundary_compliance", found) {
-        out.extend(boundary::scan_boundary(
-            measured, scorer, view, sensors, edges,
-        )?);
-    }
-    Ok(out)
-}
-
-/// The family of `h` scanned again on `scorer` (for [`refine::refit`]); `None` for the kinds
-/// their scan fits exactly.
-fn rescan(
-    h: &Hypothesis,
-    scorer: &Scorer,
-    view: &ModelView,
-    shares: &ModeShares,
-) -> Result<Option<Candidate>, SimError> {
-    Ok(match h {
-        Hypothesis::AddedMass { .. } => mass::scan_point_mass(scorer, view)?,
-        Hypothesis::StiffnessChange { .. } => Some(stiffness::scan_stiffness(scorer, shares)),
-        Hypothesis::LocalizedDamping { .. } => {
-            Some(damping::scan_localized_damping(scorer, shares))
-        }
-        Hypothesis::ViscoelasticDamping { .. } => Some(viscoelastic::scan_viscoelastic(
-            scorer,
-            shares,
-            view.model.material.youngs_modulus,
-        )),
-        _ => None,
-    })
-}
-
-/// The first-order prediction of `h` on `scorer`'s pairs (for a place the shapes chose among
-/// a candidate's images and alternatives); `None` for kinds whose candidate already holds it.
-fn first_order(
-    h: &Hypothesis,
-    scorer: &Scorer,
-    view: &ModelView,
-    shares: &ModeShares,
-) -> Result<Option<Prediction>, SimError> {
-    Ok(match h {
-        Hypothesis::AddedMass { .. } => Some(mass::predict(h, scorer, view)?),
-        Hypothesis::StiffnessChange { .. } => Some(stiffness::predict(h, scorer, shares)),
-        Hypothesis::LocalizedDamping { .. } => Some(damping::predict(h, scorer, shares)),
-        Hypothesis::ViscoelasticDamping { .. } => Some(viscoelastic::predict(h, scorer, shares)),
-        _ => None,
-    })
-}
-
-/// The candidate `best` moved to the place the shapes chose (`chosen`), and its size refined
-/// through the re-solved model. When the shapes left several sizes of a lossy region
-/// (`sizes`, each with its quadrature correlation), each is refined and scored through its
-/// re-solved model: the first-order damping trades area for loss, the solved one less so (a
-/// g = 50 % patch: the true rectangle by 14 in BIC over ±1 cell). Sizes within
-/// [`SIZE_BIC_TIE`] of the best are not told apart by the damping (a viscoelastic layer and
-/// one twice as wide with half the loss: 1.1); among them the shapes' favourite is kept, and
-/// the others (refined) are returned, best shape first, to be reported.
-fn settle_size(
-    modes: &[Mode],
-    sensors: &[SensorPosition],
-    view: &ModelView,
-    (scorer, shares): (&Scorer, &ModeShares),
-    best: &Candidate,
-    sizes: &[(Hypothesis, f64)],
-    chosen: &Hypothesis,
-) -> Result<(Candidate, Hypothesis, Vec<Hypothesis>), SimError> {
-    let at = |h: &Hypothesis| -> Result<Candidate, SimError> {
-        let mut c = best.clone();
-        c.hypothesis = h.clone();
-        c.prediction = first_order(h, scorer, view, shares)?.unwrap_or(c.prediction);
-        Ok(c)
-    };
-    if sizes.len() < 2 {
-        let c = at(chosen)?;
-        let refined = refine(modes, sensors, view, scorer, &c)?;
-        return Ok((c, refined, Vec::new()));
-    }
-    // Sizes are ranked by their loss alone (a layer's mass would make every refinement a full
-    // re-solve: 72 s instead of 45 for a diagnosis); the kept one is refined with its mass.
-    let settled = parallel_map(sizes.iter().collect(), |(h, shape_score)| {
-        let c = at(&h.with_density_factor(1.0))?;
-        let refined = refine(modes, sensors, view, scorer, &c)?;
-        let bic = refine::solved_bic(
-            modes,
-            sensors,
-            view,
-            scorer,
-            &refined,
-            c.params,
-            c.locations,
-        )?;
-        let sized = refined
-            .amplitude()
-            .map_or(h.clone(), |a| h.with_amplitude(a));
-        Ok((sized, bic, *shape_score))
-    })?;
-    let least = settled.iter().map(|s| s.1).fold(f64::INFINITY, f64::min);
-    let mut tied: Vec<_> = settled
-        .into_iter()
-        .filter(|s| s.1 - least < SIZE_BIC_TIE)
-        .collect();
-    tied.sort_by(|a, b| b.2.total_cmp(&a.2));
-    let mut tied = tied.into_iter().map(|t| t.0);
-    let kept = tied.next().expect("the least BIC is among the sizes");
-    let c = at(&kept)?;
-    let refined = refine(modes, sensors, view, scorer, &c)?;
-    Ok((c, refined, tied.collect()))
-}
-
-/// Sizes of a lossy region whose re-solved BICs differ by less than this are a tie for the
-/// damping — the evidence a finding itself must show ([`MIN_BIC_GAIN`], "strong") — and the
-/// shapes decide; the other tied sizes are reported with the finding, with their loss. (On
-/// FE recordings of a g = 50 % patch the solved damping preferred a rectangle two cells
-/// narrower by 4, on Kirchhoff recordings the true one by 14: below "strong" it is noise.)
-pub const SIZE_BIC_TIE: f64 = MIN_BIC_GAIN;
 
 /// One kept finding: the refined change, the candidate it came from (its prediction is the
 /// sensitivity), and the scorer of its round.
@@ -470,18 +313,23 @@ pub fn diagnose_with_progress(
         let next = refined.apply(&view.model);
         let next_view = view_of(&view, &next, &refined)?;
         let next_ev = Evidence::gather(&modes, next_view.poles_at(sensors)?);
-        if fits_worse(&ev, &next_ev, &pattern) {
-            // The BIC chose it, yet the updated model fits the recordings worse than before: an
-            // update that does not fit is not returned (found on a stiffer region of a small
-            // plate: "stiffness_change" over the whole plate, frequency RMS 2.4 → 9.0 Hz).
-            progress(&format!(
-                "round {}: {} rejected: the updated model fits worse",
-                round + 1,
-                refined.kind()
-            ));
+        // The first-order scan chose it; the re-solved model may not bear it out. A size refitted
+        // to no change is no finding (found on a coarse model of a thin plate: "added_mass"
+        // 0.00 kg, BIC gain 7.3, the fit unchanged); an update that fits worse is not returned
+        // (a stiffer region of a small plate: "stiffness_change" over the whole plate,
+        // frequency RMS 2.4 → 9.0 Hz).
+        let rejected = if refined.amplitude() == Some(0.0) {
+            Some(REJECTED_NO_SIZE)
+        } else if fits_worse(&ev, &next_ev, &pattern) {
+            Some(REJECTED_FITS_WORSE)
+        } else {
+            None
+        };
+        if let Some(why) = rejected {
+            progress(&format!("round {}: {}{why}", round + 1, refined.kind()));
             families.push(FamilyScore {
                 round,
-                kind: format!("{}{REJECTED_FITS_WORSE}", refined.kind()),
+                kind: format!("{}{why}", refined.kind()),
                 bic_gain: none - best.bic,
             });
             break;
@@ -512,17 +360,29 @@ pub fn diagnose_with_progress(
                 c.prediction = c.prediction.realigned(&first.scorer, &scorer2, scale);
                 c.hypothesis = first.hypothesis.clone();
                 let reweighed = refine(&modes, sensors, &base2, &scorer2, &c)?;
-                let mut finding = Finding::of(&reweighed, &[], model);
-                let old = &kept[0].finding;
-                finding.images = old.images.clone();
-                finding.confidence = old.confidence;
-                finding.bic_gain = old.bic_gain;
-                finding.runner_up = old.runner_up.clone();
-                let updated = second.hypothesis.apply(&reweighed.apply(model));
-                view = ModelView::new(&updated, base.fmax_hz)?;
-                ev = Evidence::gather(&modes, view.poles_at(sensors)?);
-                kept[0].finding = finding;
-                kept[0].hypothesis = reweighed;
+                if reweighed.amplitude() == Some(0.0) {
+                    // Beside the second finding the first explains nothing: it is dropped.
+                    families.push(FamilyScore {
+                        round: MAX_FINDINGS - 1,
+                        kind: format!("{}{REJECTED_NO_SIZE}", reweighed.kind()),
+                        bic_gain: first.finding.bic_gain.unwrap_or(f64::NAN),
+                    });
+                    view = base2;
+                    ev = ev2;
+                    kept.remove(0);
+                } else {
+                    let mut finding = Finding::of(&reweighed, &[], model);
+                    let old = &kept[0].finding;
+                    finding.images = old.images.clone();
+                    finding.confidence = old.confidence;
+                    finding.bic_gain = old.bic_gain;
+                    finding.runner_up = old.runner_up.clone();
+                    let updated = second.hypothesis.apply(&reweighed.apply(model));
+                    view = ModelView::new(&updated, base.fmax_hz)?;
+                    ev = Evidence::gather(&modes, view.poles_at(sensors)?);
+                    kept[0].finding = finding;
+                    kept[0].hypothesis = reweighed;
+                }
             }
         }
     }

@@ -384,24 +384,26 @@ impl Diagnosis {
                 .calibration
                 .map_or(0.0, |c| 100.0 * c.frequency_sigma_rel),
         );
-        let rejected = self
-            .families
-            .iter()
-            .find_map(|f| f.kind.strip_suffix(REJECTED_FITS_WORSE));
+        let rejected = self.families.iter().find_map(|f| {
+            let worse = "the model updated with it fits the recordings worse";
+            let no_size = "refitted through the re-solved model, its size came to no change";
+            (f.kind.strip_suffix(REJECTED_FITS_WORSE).map(|k| (k, worse)))
+                .or_else(|| f.kind.strip_suffix(REJECTED_NO_SIZE).map(|k| (k, no_size)))
+        });
         match (self.is_clean(), rejected) {
             (true, None) => {
                 let _ = writeln!(out, "verdict: no missing physics");
             }
-            (true, Some(kind)) => {
+            (true, Some((kind, why))) => {
                 let _ = writeln!(
                     out,
-                    "verdict: no missing physics that the model could be updated with: the best candidate, {kind}, was rejected because the model updated with it fits the recordings worse (the mismatch below stays unexplained)"
+                    "verdict: no missing physics that the model could be updated with: the best candidate, {kind}, was rejected because {why} (the mismatch below stays unexplained)"
                 );
             }
-            (false, Some(kind)) => {
+            (false, Some((kind, why))) => {
                 let _ = writeln!(
                     out,
-                    "note: a further candidate, {kind}, was rejected: the model updated with it fits the recordings worse"
+                    "note: a further candidate, {kind}, was rejected: {why}"
                 );
             }
             (false, None) => {}
@@ -435,6 +437,10 @@ impl Diagnosis {
 /// What a [`FamilyScore`]'s kind ends with when the round's best candidate was rejected because
 /// the model updated with it fits the recordings worse.
 pub const REJECTED_FITS_WORSE: &str = " (rejected: fits worse)";
+
+/// What a [`FamilyScore`]'s kind ends with when the round's best candidate, refitted through the
+/// re-solved model, came to no change at all (a mass of 0 kg, a loss of 0).
+pub const REJECTED_NO_SIZE: &str = " (rejected: no size left)";
 
 /// Why a local damping map alone would not show a finding of this kind.
 pub fn why_maps_miss(kind: &str) -> &'static str {
