@@ -100,14 +100,7 @@ fn truth_and_model(
 fn recordings(name: &str, extra: &str) -> (PathBuf, Model, PathBuf) {
     let (dir, truth, model) = truth_and_model(name, SMALL, ((36, 54), (12, 18)), extra);
     let set = dir.join("set");
-    TestCommand::new([
-        "simulate",
-        "--model",
-        truth.to_str().unwrap(),
-        "--out",
-        set.to_str().unwrap(),
-    ])
-    .ok();
+    common::simulate_set(&truth, &set, &[]);
     (set, Model::load(&model).expect("the coarse model"), dir)
 }
 
@@ -177,20 +170,15 @@ fn a_size_refitted_to_nothing_is_no_finding() {
         truth_and_model("coarse-thin", (1.5, 2.0, 0.01), ((48, 66), (16, 22)), "");
     let (set, out) = (dir.join("set"), dir.join("out"));
     let path = |p: &Path| p.to_str().unwrap().to_string();
-    TestCommand::new([
-        "simulate",
-        "--model",
-        &path(&truth),
-        "--out",
-        &path(&set),
+    let noise = [
         "--snr-db",
         "50",
         "--snr-definition",
         "mean-power",
         "--seed",
         "1",
-    ])
-    .ok();
+    ];
+    common::simulate_set(&truth, &set, &noise);
     let stdout = TestCommand::new([
         "diagnose",
         &path(&set),

@@ -8,7 +8,7 @@
 
 use std::path::Path;
 
-use crate::common::{fresh_dir, run_dampscope as dampscope, TestCommand};
+use crate::common::{self, fresh_dir, run_dampscope as dampscope};
 
 const NOMINAL: &str = r#"
 [plate]
@@ -44,18 +44,6 @@ y = [0.75, 1.25]
 youngs_modulus = 1.0e11
 "#;
 
-/// `dampscope simulate --model MODEL --out SET`, which must succeed.
-fn simulate(model: &Path, set: &Path) {
-    TestCommand::new([
-        "simulate",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        set.to_str().unwrap(),
-    ])
-    .ok();
-}
-
 /// `dampscope diagnose SET --model MODEL --out OUT`.
 fn diagnose(set: &Path, model: &Path, out: &Path) -> std::process::Output {
     let (set, model, out) = (
@@ -77,7 +65,7 @@ fn an_update_that_fits_worse_is_not_returned() {
     );
     std::fs::write(&nominal, NOMINAL).unwrap();
     std::fs::write(&truth, format!("{NOMINAL}{STIFFER_REGION}")).unwrap();
-    simulate(&truth, &set);
+    common::simulate_set(&truth, &set, &[]);
     let o = diagnose(&set, &nominal, &out);
     let stdout = String::from_utf8_lossy(&o.stdout).into_owned();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -111,7 +99,7 @@ fn a_sensor_off_the_models_plate_is_an_error_naming_it() {
     let dir = fresh_dir("off-plate-sensor");
     let (nominal, set) = (dir.join("nominal.toml"), dir.join("set"));
     std::fs::write(&nominal, NOMINAL).unwrap();
-    simulate(&nominal, &set);
+    common::simulate_set(&nominal, &set, &[]);
     let sensors = std::fs::read_to_string(set.join("sensors.csv")).unwrap();
     let mut lines: Vec<String> = sensors.lines().map(String::from).collect();
     let header: Vec<&str> = lines[0].split(',').collect();

@@ -131,6 +131,17 @@ fn rows_of<R: std::io::Read>(
         .collect()
 }
 
+/// `dampscope simulate --model MODEL --out SET EXTRA…`, which must succeed.
+pub fn simulate_set(model: &std::path::Path, set: &std::path::Path, extra: &[&str]) {
+    let (model, set) = (model.to_str().unwrap(), set.to_str().unwrap());
+    TestCommand::new(
+        ["simulate", "--model", model, "--out", set]
+            .iter()
+            .chain(extra),
+    )
+    .ok();
+}
+
 /// A fresh, empty temporary directory `dampscope-<name>-<pid>` (removed first if left over).
 pub fn fresh_dir(name: &str) -> std::path::PathBuf {
     let d = std::env::temp_dir().join(format!("dampscope-{name}-{}", std::process::id()));
