@@ -10,7 +10,7 @@ use anyhow::Context;
 
 use crate::diagnose::output::write_diagnosis;
 use crate::diagnose::procedure::{
-    diagnose_with_progress, DiagnoseSettings, DEFAULT_DIAGNOSE_FMAX_HZ,
+    diagnose_with_progress, DiagnoseSettings, DEFAULT_DIAGNOSE_FMAX_HZ, MODEL_RANGE_FACTOR,
 };
 use crate::diagnose::score::DEFAULT_MODEL_FORM_SIGMA;
 use crate::modal::model_shapes::sensor_positions;
@@ -65,6 +65,10 @@ pub fn run(args: &DiagnoseArgs) -> anyhow::Result<()> {
     let model =
         Model::load(&args.model).with_context(|| format!("model {}", args.model.display()))?;
     super::warn_all(&crate::sim::resolution::model_warnings(&model, args.fmax));
+    super::warn_all(
+        crate::diagnose::nuisance::pattern_warning(&model, MODEL_RANGE_FACTOR * args.fmax)
+            .as_slice(),
+    );
     let settings = DiagnoseSettings {
         fmax_hz: args.fmax,
         excitation_m: set.excitation.first().map(|e| (e.x_m, e.y_m)),

@@ -83,6 +83,20 @@ impl PatternMesh {
     }
 }
 
+/// What a user should hear when no mesh can show `model`'s discretisation pattern up to
+/// `fmax_hz` (the view's range): without it, the mesh's own direction-dependent error is left
+/// for the physics to explain; `None` when a mesh can.
+pub fn pattern_warning(model: &Model, fmax_hz: f64) -> Option<String> {
+    PatternMesh::for_model(model, fmax_hz).is_none().then(|| {
+        format!(
+            "the model's discretisation error cannot be profiled up to {fmax_hz:.0} Hz: the mesh \
+             half as fine has fewer than {RICHARDSON_MIN_ELEMENTS_PER_WAVELENGTH:.0} elements \
+             per bending wavelength and the mesh twice as fine does not fit the memory budget; \
+             a finding may be the mesh's own error (raise --max-memory or lower --fmax)"
+        )
+    })
+}
+
 /// The model's discretisation pattern per mode of `view` (below its range): ln(f_coarser /
 /// f_finer) between the view's model and the model on the [`PatternMesh::for_model`] mesh,
 /// modes paired by shape at `sensors`; 0 for a mode without a partner. Empty when no mesh can
@@ -257,6 +271,8 @@ mod tests {
         let mut huge = reference;
         (huge.mesh.nx, huge.mesh.ny) = (2000, 3000);
         assert_eq!(pick(&huge, 1.0e7), None);
+        assert!(pattern_warning(&huge, 1.0e7).is_some_and(|w| w.contains("--max-memory")));
+        assert_eq!(pattern_warning(&Model::reference_plate(), 208.0), None);
     }
 
     /// Where both meshes show it, the pattern from the mesh half as fine and the one from the
