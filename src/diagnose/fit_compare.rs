@@ -4,6 +4,10 @@
 use super::evidence::Evidence;
 use super::fit::residual_rms_hz;
 
+/// Most of the modes paired before that an update may leave unpaired (a mass that mixes a close
+/// pair as the structure does may lose one of them; a quarter lost are no longer the same modes).
+pub const MAX_LOST_PAIRS_FRACTION: f64 = 0.25;
+
 /// Relative growth of the calibrated frequency RMS beyond which an update fits worse
 /// ([`fits_worse`]), unless its damping RMS fell by as much.
 const WORSE_FIT_RATIO: f64 = 1.1;
@@ -16,6 +20,11 @@ const WORSE_FIT_RATIO: f64 = 1.1;
 /// structure does pairs them anew, and the RMS of a larger set is no measure of fit (found on
 /// a point mass beside a close triple of a small plate: the triple paired only after the
 /// update, and the mass was rejected).
+///
+/// An update that leaves more than [`MAX_LOST_PAIRS_FRACTION`] of the modes paired before
+/// unpaired fits worse whatever the rest says: its modes no longer match the structure's
+/// (found: a second finding, a region +75 % stiff over three quarters of a small plate, left no
+/// mode paired, and a comparison over no modes could not say worse).
 pub fn fits_worse(before: &Evidence, after: &Evidence, pattern: &[f64]) -> bool {
     let common: Vec<_> = before
         .pairs
@@ -25,6 +34,10 @@ pub fn fits_worse(before: &Evidence, after: &Evidence, pattern: &[f64]) -> bool 
             Some((b, a))
         })
         .collect();
+    let lost = before.pairs.len() - common.len();
+    if lost as f64 > MAX_LOST_PAIRS_FRACTION * before.pairs.len() as f64 {
+        return true;
+    }
     let f_hz: Vec<f64> = common
         .iter()
         .map(|(b, _)| before.model[b.model].damped_frequency_hz)
@@ -113,6 +126,17 @@ mod tests {
         assert!(fits_worse(
             &evidence(&f, &before),
             &evidence(&f, &spoiled),
+            &[]
+        ));
+        let lost: Vec<Option<f64>> = (0..8).map(|k| (k < 4).then_some(0.0)).collect();
+        assert!(fits_worse(
+            &evidence(&f, &before),
+            &evidence(&f, &lost),
+            &[]
+        ));
+        assert!(fits_worse(
+            &evidence(&f, &before),
+            &evidence(&f, &[None; 8]),
             &[]
         ));
     }

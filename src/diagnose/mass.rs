@@ -8,6 +8,7 @@
 
 use super::evidence::ModelView;
 use super::hypothesis::Hypothesis;
+use super::procedure::MIN_BIC_GAIN;
 use super::score::{Candidate, Prediction, Scorer};
 use crate::sim::error::SimError;
 use crate::sim::model::SensorPosition;
@@ -71,10 +72,15 @@ pub fn scan_point_mass(scorer: &Scorer, view: &ModelView) -> Result<Option<Candi
         y_m: points[f.0].y_m,
         mass_kg: f.1,
     };
-    let images = fits
+    let images: Vec<Hypothesis> = fits
         .iter()
         .filter(|f| f.0 != best.0 && f.1 > 0.0 && f.2 <= best.2 * (1.0 + IMAGE_RSS_REL) + 1e-300)
         .map(hypothesis)
+        .collect();
+    let rivals = rivals(&points, &fits, best, scorer.n());
+    let images = images
+        .into_iter()
+        .chain(rivals.iter().map(hypothesis))
         .collect();
     let prediction = Prediction {
         log_frequency: sensitivity(best.0).iter().map(|a| a * best.1).collect(),
@@ -83,6 +89,45 @@ pub fn scan_point_mass(scorer: &Scorer, view: &ModelView) -> Result<Option<Candi
     let mut c = scorer.candidate(hypothesis(&best), prediction, 3.0, points.len() as f64);
     c.images = images;
     Ok(Some(c))
+}
+
+/// Most places that fit about as well as the best without being its mirror image, handed on
+/// with it for the shapes to settle (each costs a re-solve).
+const MAX_RIVALS: usize = 3;
+
+/// Points whose first-order fit is tied with the best's (their frequency BIC within
+/// [`MIN_BIC_GAIN`]), at least two grid spacings from the best and from each other, at most
+/// [`MAX_RIVALS`], best first. Place and size trade off: near a pinned edge φ² grows from
+/// zero, so a heavy mass at the edge and a light one further in move the modes alike (found:
+/// 38 kg at the edge chosen for 1.26 kg 0.17 m from it); the shapes of the re-solved models
+/// tell them apart, as they tell mirror images apart.
+fn rivals(
+    points: &[SensorPosition],
+    fits: &[(usize, f64, f64)],
+    best: (usize, f64, f64),
+    pairs: usize,
+) -> Vec<(usize, f64, f64)> {
+    let tied_rss = best.2 * (MIN_BIC_GAIN / pairs.max(1) as f64).exp();
+    let apart = |a: usize, b: usize| {
+        (points[a].x_m - points[b].x_m).hypot(points[a].y_m - points[b].y_m)
+            > 2.0 * MASS_GRID_SPACING_M + 1e-9
+    };
+    let mut tied: Vec<(usize, f64, f64)> = fits
+        .iter()
+        .filter(|f| f.1 > 0.0 && f.2 <= tied_rss && f.2 > best.2 * (1.0 + IMAGE_RSS_REL) + 1e-300)
+        .copied()
+        .collect();
+    tied.sort_by(|a, b| a.2.total_cmp(&b.2));
+    let mut out: Vec<(usize, f64, f64)> = Vec::new();
+    for f in tied {
+        if out.len() == MAX_RIVALS {
+            break;
+        }
+        if apart(f.0, best.0) && out.iter().all(|r| apart(r.0, f.0)) {
+            out.push(f);
+        }
+    }
+    out
 }
 
 /// The first-order prediction of an `added_mass` hypothesis on the scorer's pairs.

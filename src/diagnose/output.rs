@@ -174,7 +174,17 @@ pub fn report_markdown(d: &Diagnosis, recordings: &Path, model: &Path) -> String
 /// The figures: mode errors before/after, the shape residual map with the findings drawn, and
 /// FRF overlays (when the FRF error could be computed).
 pub fn write_figures(out: &Path, model: &Model, d: &Diagnosis) -> Result<()> {
-    crate::plot::mode_errors(d, &out.join("mode-errors.png"))?;
+    // Mode errors need a mode paired before and after; without one there is nothing to draw,
+    // and the report and the other figures are still written.
+    let paired_both = d.evidence.pairs.iter().any(|p| {
+        d.evidence_after
+            .pairs
+            .iter()
+            .any(|a| a.measured == p.measured)
+    });
+    if paired_both {
+        crate::plot::mode_errors(d, &out.join("mode-errors.png"))?;
+    }
     let residual = d.shape_residual();
     if d.sensor_positions.len() == residual.len() && !residual.is_empty() {
         let at: Vec<(f64, f64)> = d.sensor_positions.iter().map(|s| (s.x_m, s.y_m)).collect();

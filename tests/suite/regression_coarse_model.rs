@@ -206,3 +206,64 @@ fn a_size_refitted_to_nothing_is_no_finding() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Found with the same probe (`scripts/coarse_model_probe.py … 5 12`, case 5): a 1.26 kg mass
+/// 0.17 m from a pinned edge, recorded with its noise (seed 6), was placed at the edge,
+/// (0.53, 0.03) m, and weighed 38.4 kg: near the edge φ² grows from zero, so a heavy mass there
+/// and a light one further in move the modes alike. The places whose first-order fit ties with
+/// the best now go to the shape test with the mirror images: 2.20 kg at (0.47, 0.12) m. Still
+/// +75 % (README, known limits); asserted: the place within 0.15 m and the size within a
+/// factor of 2.5, which the edge's 38 kg fails.
+#[test]
+fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
+    let (tx, ty, tm) = (0.559, 0.166, 1.26);
+    let mass = format!("[[point_mass]]\nx = {tx}\ny = {ty}\nmass = {tm}\n");
+    let (dir, truth, model) = truth_and_model("coarse-edge", SMALL, ((36, 54), (12, 18)), &mass);
+    let (set, out) = (dir.join("set"), dir.join("out"));
+    let path = |p: &Path| p.to_str().unwrap().to_string();
+    let noise = [
+        "--snr-db",
+        "50",
+        "--snr-definition",
+        "mean-power",
+        "--seed",
+        "6",
+    ];
+    common::simulate_set(&truth, &set, &noise);
+    TestCommand::new([
+        "diagnose",
+        &path(&set),
+        "--model",
+        &path(&model),
+        "--out",
+        &path(&out),
+        "--fmax",
+        "400",
+    ])
+    .ok();
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
+            .unwrap();
+    let found = json["findings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|f| f["kind"] == "added_mass")
+        .unwrap_or_else(|| panic!("no mass: {}", json["findings"]));
+    let (x, y) = (
+        found["point"]["x"].as_f64().unwrap(),
+        found["point"]["y"].as_f64().unwrap(),
+    );
+    let off = [
+        (tx, ty),
+        (1.0 - tx, ty),
+        (tx, 1.5 - ty),
+        (1.0 - tx, 1.5 - ty),
+    ]
+    .iter()
+    .map(|(a, b)| (x - a).hypot(y - b))
+    .fold(f64::INFINITY, f64::min);
+    let m = found["parameters"]["mass_kg"].as_f64().unwrap();
+    assert!(off < 0.15 && m < 2.5 * tm, "{m} kg at ({x}, {y}): {found}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
