@@ -104,6 +104,24 @@ fn recordings(name: &str, extra: &str) -> (PathBuf, Model, PathBuf) {
     (set, Model::load(&model).expect("the coarse model"), dir)
 }
 
+/// `dampscope diagnose SET --model MODEL --out OUT --fmax FMAX_HZ`, which must succeed: its
+/// standard output and `diagnosis.json`.
+fn diagnose_cli(
+    set: &Path,
+    model: &Path,
+    out: &Path,
+    fmax_hz: &str,
+) -> (String, serde_json::Value) {
+    let path = |p: &Path| p.to_str().unwrap().to_string();
+    let (set, model, out_dir) = (path(set), path(model), path(out));
+    let stdout = TestCommand::new([
+        "diagnose", &set, "--model", &model, "--out", &out_dir, "--fmax", fmax_hz,
+    ])
+    .ok();
+    let text = std::fs::read_to_string(out.join("diagnosis.json")).unwrap();
+    (stdout, serde_json::from_str(&text).unwrap())
+}
+
 /// `diagnose` of `set` at 50 dB on mean power (`seed`) against `model`.
 fn diagnose_at(set: &Path, model: &Model, seed: u64) -> Diagnosis {
     let (rec, sensors) = common::noisy_set(set.to_str().unwrap(), 50.0, seed);
@@ -169,7 +187,6 @@ fn a_size_refitted_to_nothing_is_no_finding() {
     let (dir, truth, model) =
         truth_and_model("coarse-thin", (1.5, 2.0, 0.01), ((48, 66), (16, 22)), "");
     let (set, out) = (dir.join("set"), dir.join("out"));
-    let path = |p: &Path| p.to_str().unwrap().to_string();
     let noise = [
         "--snr-db",
         "50",
@@ -179,20 +196,7 @@ fn a_size_refitted_to_nothing_is_no_finding() {
         "1",
     ];
     common::simulate_set(&truth, &set, &noise);
-    let stdout = TestCommand::new([
-        "diagnose",
-        &path(&set),
-        "--model",
-        &path(&model),
-        "--out",
-        &path(&out),
-        "--fmax",
-        "200",
-    ])
-    .ok();
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
-            .unwrap();
+    let (stdout, json) = diagnose_cli(&set, &model, &out, "200");
     let physics: Vec<_> = json["findings"]
         .as_array()
         .unwrap()
@@ -220,7 +224,6 @@ fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
     let mass = format!("[[point_mass]]\nx = {tx}\ny = {ty}\nmass = {tm}\n");
     let (dir, truth, model) = truth_and_model("coarse-edge", SMALL, ((36, 54), (12, 18)), &mass);
     let (set, out) = (dir.join("set"), dir.join("out"));
-    let path = |p: &Path| p.to_str().unwrap().to_string();
     let noise = [
         "--snr-db",
         "50",
@@ -230,20 +233,7 @@ fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
         "6",
     ];
     common::simulate_set(&truth, &set, &noise);
-    TestCommand::new([
-        "diagnose",
-        &path(&set),
-        "--model",
-        &path(&model),
-        "--out",
-        &path(&out),
-        "--fmax",
-        "400",
-    ])
-    .ok();
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("diagnosis.json")).unwrap())
-            .unwrap();
+    let (_, json) = diagnose_cli(&set, &model, &out, "400");
     let found = json["findings"]
         .as_array()
         .unwrap()
