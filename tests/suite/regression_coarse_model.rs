@@ -122,6 +122,42 @@ fn diagnose_cli(
     (stdout, serde_json::from_str(&text).unwrap())
 }
 
+/// Recordings of plate `dims` on `meshes.0` with `extra`, simulated with noise 50 dB under the
+/// mean signal power (`seed`), diagnosed by the CLI against the plate on `meshes.1` to
+/// `fmax_hz`: the directory, the standard output and `diagnosis.json`.
+fn diagnose_noisy(
+    name: &str,
+    dims: (f64, f64, f64),
+    meshes: ((usize, usize), (usize, usize)),
+    extra: &str,
+    seed: u64,
+    fmax_hz: &str,
+) -> (PathBuf, String, serde_json::Value) {
+    let (dir, truth, model) = truth_and_model(name, dims, meshes, extra);
+    let (set, out) = (dir.join("set"), dir.join("out"));
+    let seed = seed.to_string();
+    let noise = [
+        "--snr-db",
+        "50",
+        "--snr-definition",
+        "mean-power",
+        "--seed",
+        &seed,
+    ];
+    common::simulate_set(&truth, &set, &noise);
+    let (stdout, json) = diagnose_cli(&set, &model, &out, fmax_hz);
+    (dir, stdout, json)
+}
+
+/// Distance from `found` to the nearest of `truth` and its mirror images on the small plate, m.
+fn offset_on_small_plate_m(found: (f64, f64), (tx, ty): (f64, f64)) -> f64 {
+    let (lx, ly, _) = SMALL;
+    [(tx, ty), (lx - tx, ty), (tx, ly - ty), (lx - tx, ly - ty)]
+        .iter()
+        .map(|(x, y)| (found.0 - x).hypot(found.1 - y))
+        .fold(f64::INFINITY, f64::min)
+}
+
 /// `diagnose` of `set` at 50 dB on mean power (`seed`) against `model`.
 fn diagnose_at(set: &Path, model: &Model, seed: u64) -> Diagnosis {
     let (rec, sensors) = common::noisy_set(set.to_str().unwrap(), 50.0, seed);
@@ -161,15 +197,7 @@ fn a_mass_on_a_coarse_model_is_found_alone() {
     let f = physics[0];
     assert_eq!(f.kind, "added_mass", "{f:?}");
     let p = f.point.as_ref().expect("a point");
-    let off = [
-        (tx, ty),
-        (1.0 - tx, ty),
-        (tx, 1.5 - ty),
-        (1.0 - tx, 1.5 - ty),
-    ]
-    .iter()
-    .map(|(x, y)| (p.x - x).hypot(p.y - y))
-    .fold(f64::INFINITY, f64::min);
+    let off = offset_on_small_plate_m((p.x, p.y), (tx, ty));
     assert!(off < 0.1, "{off} m: {f:?}");
     let m = f.parameters["mass_kg"];
     assert!(common::rel_err(m, tm) < 0.3, "{m} kg");
@@ -184,19 +212,8 @@ fn a_mass_on_a_coarse_model_is_found_alone() {
 /// to no change is now rejected, and the verdict says so.
 #[test]
 fn a_size_refitted_to_nothing_is_no_finding() {
-    let (dir, truth, model) =
-        truth_and_model("coarse-thin", (1.5, 2.0, 0.01), ((48, 66), (16, 22)), "");
-    let (set, out) = (dir.join("set"), dir.join("out"));
-    let noise = [
-        "--snr-db",
-        "50",
-        "--snr-definition",
-        "mean-power",
-        "--seed",
-        "1",
-    ];
-    common::simulate_set(&truth, &set, &noise);
-    let (stdout, json) = diagnose_cli(&set, &model, &out, "200");
+    let meshes = ((48, 66), (16, 22));
+    let (dir, stdout, json) = diagnose_noisy("coarse-thin", (1.5, 2.0, 0.01), meshes, "", 1, "200");
     let physics: Vec<_> = json["findings"]
         .as_array()
         .unwrap()
@@ -222,18 +239,8 @@ fn a_size_refitted_to_nothing_is_no_finding() {
 fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
     let (tx, ty, tm) = (0.559, 0.166, 1.26);
     let mass = format!("[[point_mass]]\nx = {tx}\ny = {ty}\nmass = {tm}\n");
-    let (dir, truth, model) = truth_and_model("coarse-edge", SMALL, ((36, 54), (12, 18)), &mass);
-    let (set, out) = (dir.join("set"), dir.join("out"));
-    let noise = [
-        "--snr-db",
-        "50",
-        "--snr-definition",
-        "mean-power",
-        "--seed",
-        "6",
-    ];
-    common::simulate_set(&truth, &set, &noise);
-    let (_, json) = diagnose_cli(&set, &model, &out, "400");
+    let meshes = ((36, 54), (12, 18));
+    let (dir, _, json) = diagnose_noisy("coarse-edge", SMALL, meshes, &mass, 6, "400");
     let found = json["findings"]
         .as_array()
         .unwrap()
@@ -244,15 +251,7 @@ fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
         found["point"]["x"].as_f64().unwrap(),
         found["point"]["y"].as_f64().unwrap(),
     );
-    let off = [
-        (tx, ty),
-        (1.0 - tx, ty),
-        (tx, 1.5 - ty),
-        (1.0 - tx, 1.5 - ty),
-    ]
-    .iter()
-    .map(|(a, b)| (x - a).hypot(y - b))
-    .fold(f64::INFINITY, f64::min);
+    let off = offset_on_small_plate_m((x, y), (tx, ty));
     let m = found["parameters"]["mass_kg"].as_f64().unwrap();
     assert!(off < 0.15 && m < 2.5 * tm, "{m} kg at ({x}, {y}): {found}");
     let _ = std::fs::remove_dir_all(&dir);
