@@ -245,6 +245,12 @@ pub struct PipelineArgs {
     /// before.
     #[arg(long, default_value_t = DEFAULT_FLOOR_FLAT_DB, value_name = "DB")]
     pub floor_flat_db: f64,
+    /// End every open decay when the writer pauses (nothing on standard input or a named pipe
+    /// for 0.25 s), as if the input ended there: for a client that sends one record at a time
+    /// and waits for its rows. The rows are those of the same bytes in a file that ends at the
+    /// pause.
+    #[arg(long)]
+    pub pause_ends_decays: bool,
     /// Reproduce another tool: `pyrato` sets --front-end octave --filter-direction forward
     /// --filter-order 14 --frame-ms 0.1 --noise-margin-db 0 --min-r2 0 --max-curvature-pct inf
     /// and pyrato's EDT limits (these options are then ignored).
@@ -269,6 +275,7 @@ impl PipelineArgs {
                     retrigger_jump_db: self.retrigger_jump_db,
                     floor_min_s: self.floor_min_s,
                     floor_flat_db: self.floor_flat_db,
+                    pause_ends_decays: self.pause_ends_decays,
                     ..Default::default()
                 },
                 ..Default::default()

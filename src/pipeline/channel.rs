@@ -478,6 +478,21 @@ impl ChannelAnalyzer {
             return;
         }
         self.finished = true;
+        self.settle_search();
+        self.finalize(truncated, out);
+        if self.decays == 0 {
+            let n = self.front_end.bands().len();
+            let mut est = DecayEstimate::failed(Flag::NoEnergy);
+            if truncated {
+                est.flags.push(Flag::InputTruncated);
+            }
+            out.extend(self.rows_for(self.detector.position(), None, vec![est; n]));
+        }
+    }
+
+    /// Settles an onset search that armed but did not settle (its lookahead not yet complete)
+    /// with what it buffered, and starts that decay.
+    fn settle_search(&mut self) {
         if let State::Searching = self.state {
             if let OnsetEvent::Found {
                 onset_index,
@@ -490,15 +505,18 @@ impl ChannelAnalyzer {
                 self.start_decay(onset_index, &pre_roll, &samples, peak);
             }
         }
-        self.finalize(truncated, out);
-        if self.decays == 0 {
-            let n = self.front_end.bands().len();
-            let mut est = DecayEstimate::failed(Flag::NoEnergy);
-            if truncated {
-                est.flags.push(Flag::InputTruncated);
-            }
-            out.extend(self.rows_for(self.detector.position(), None, vec![est; n]));
+    }
+
+    /// The writer paused (nothing arrived for [`crate::source::STREAM_PAUSE_MS`]): with
+    /// [`super::Segmentation::pause_ends_decays`], the open decay ends as at the end of the
+    /// input (an onset search still settling settles first), its rows appended to `out`; the
+    /// channel then goes on with what comes next. Without it, nothing happens.
+    pub fn pause(&mut self, out: &mut Vec<ResultRow>) {
+        if self.failed || self.finished || !self.config.segmentation.pause_ends_decays {
+            return;
         }
+        self.settle_search();
+        self.finalize(false, out);
     }
 
     /// The smallest stream position (sample index) that a row this analyzer produces from now on

@@ -49,6 +49,9 @@ enum ToWorker {
     End {
         truncated: bool,
     },
+    /// The writer paused after the last block: decays on their noise floor may end
+    /// ([`ChannelAnalyzer::pause`]).
+    Pause,
 }
 
 /// The channels of each of `workers` workers: contiguous runs, as even as the count allows
@@ -234,6 +237,11 @@ pub fn run_with(
                         if !worker_txs.iter().all(|tx| tx.send(message.clone()).is_ok()) {
                             break;
                         }
+                        if source.paused()
+                            && !worker_txs.iter().all(|tx| tx.send(ToWorker::Pause).is_ok())
+                        {
+                            break;
+                        }
                     }
                     Ok(false) => break,
                     Err(e) => {
@@ -381,6 +389,20 @@ fn worker(
                 frames.decode_into(range.clone(), &mut decoded);
                 report.times.read_s += t0.elapsed().as_secs_f64();
                 (&decoded, range.start)
+            }
+            ToWorker::Pause => {
+                for (i, (c, an)) in group.iter_mut().enumerate() {
+                    let rows = guarded(&mut crashed[i], an, &|an, o| an.pause(o));
+                    if !rows.is_empty() {
+                        report.rows.push((*c, rows));
+                    }
+                    report.watermarks.push((*c, an.watermark()));
+                }
+                report.times.analysis_s = t0.elapsed().as_secs_f64();
+                if row_tx.send(report).is_err() {
+                    return;
+                }
+                continue;
             }
             ToWorker::End { truncated } => {
                 let jobs = group.drain(..).zip(crashed.drain(..));

@@ -252,6 +252,11 @@ pub(crate) struct FrameReader<R> {
     /// The descriptor a stream arrives on, watched while a block fills: a writer that pauses
     /// for [`STREAM_PAUSE_MS`] gets the frames it sent analysed ([`FrameReader::wake_on_pause`]).
     pause_fd: Option<i32>,
+    /// The last read returned early: the writer paused ([`FrameReader::paused`]).
+    paused: bool,
+    /// A pause was reported and nothing arrived since: the next read waits for bytes without
+    /// reporting the same pause again.
+    pause_told: bool,
 }
 
 /// Where the whole frames of one read are: in the reader's buffer, or a range of the mapping.
@@ -335,6 +340,8 @@ impl<R: Read> FrameReader<R> {
             mapped: None,
             block_bytes: MAX_BLOCK_BYTES,
             pause_fd: None,
+            paused: false,
+            pause_told: false,
         }
     }
 
@@ -351,6 +358,12 @@ impl<R: Read> FrameReader<R> {
     fn arrives_soon(&self) -> bool {
         self.pause_fd
             .is_none_or(|fd| super::pipe::arrives_within(fd, STREAM_PAUSE_MS))
+    }
+
+    /// Whether the last read handed out a block not yet full because nothing arrived for
+    /// [`STREAM_PAUSE_MS`] (see [`super::Source::paused`]).
+    pub(crate) fn paused(&self) -> bool {
+        self.paused
     }
 
     /// Lets one read return up to `bytes` (never less than
@@ -498,8 +511,14 @@ impl<R: Read> FrameReader<R> {
         // for one block of signal (4096 frames, or four look-ahead spans), a paused one
         // [`STREAM_PAUSE_MS`] at most.
         let mut eof = false;
+        self.paused = false;
         while self.read.have < want {
-            if self.read.have >= fb && !self.arrives_soon() {
+            // With a frame in hand, or none but a pause not yet reported: a writer that waits
+            // for its rows gets them (and the pause is told even when the frames it sent
+            // filled whole blocks).
+            if (self.read.have >= fb || !self.pause_told) && !self.arrives_soon() {
+                self.paused = true;
+                self.pause_told = true;
                 break;
             }
             let read = &mut self.read;
@@ -511,6 +530,7 @@ impl<R: Read> FrameReader<R> {
                 Ok(k) => {
                     read.have += k;
                     self.bytes_read += k as u64;
+                    self.pause_told = false;
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => {
@@ -538,7 +558,9 @@ impl<R: Read> FrameReader<R> {
             read.keep_partial();
         }
         self.frames_read += whole as u64;
-        if whole == 0 {
+        // A pause with no new whole frame is told with an empty block.
+        let tells_pause = self.paused && !self.done;
+        if whole == 0 && !tells_pause {
             return super::end_of_input(&mut self.pending, self.frames_read, &self.what);
         }
         Ok(true)

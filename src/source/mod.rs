@@ -151,7 +151,8 @@ pub trait Source: Send {
     fn info(&self) -> &SignalInfo;
 
     /// Replaces the contents of `block` with up to `max_frames` sample frames.
-    /// Returns `Ok(false)` (and an empty block) at the end of the input.
+    /// Returns `Ok(false)` (and an empty block) at the end of the input; a watched stream may
+    /// return `Ok(true)` with no frames to tell a pause ([`Source::paused`]).
     fn read_block(&mut self, max_frames: usize, block: &mut Block) -> Result<bool, SourceError>;
 
     /// [`Source::read_block`] with the frames left in their stored encoding, for sources of
@@ -196,6 +197,16 @@ pub trait Source: Send {
     /// without a cap ignore it.
     fn allow_block_bytes(&mut self, bytes: usize) {
         let _ = bytes;
+    }
+
+    /// Whether the last read returned early because the writer paused: nothing arrived on a
+    /// watched stream (standard input, a named pipe) for [`STREAM_PAUSE_MS`]. A pause is told
+    /// once, with the frames that did arrive, or with an empty block (`Ok(true)`, no frames)
+    /// when they had all been handed out. The pipeline passes it on to every channel
+    /// ([`crate::pipeline::ChannelAnalyzer::pause`]). Always `false` for files and for sources
+    /// that are not watched.
+    fn paused(&self) -> bool {
+        false
     }
 }
 

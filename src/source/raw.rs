@@ -248,6 +248,10 @@ impl<R: Read + Send> Source for RawSource<R> {
         self.frames.allow_block_bytes(bytes)
     }
 
+    fn paused(&self) -> bool {
+        self.frames.paused()
+    }
+
     /// What the caller announced, or a mapped file's size in frames (no header states it, so
     /// it is no duration).
     fn expected_frames(&self) -> Option<u64> {

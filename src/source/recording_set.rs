@@ -452,6 +452,10 @@ fn rename(inner: Box<dyn Source>, names: Vec<String>) -> Box<dyn Source> {
             self.inner.quantization_step()
         }
 
+        fn paused(&self) -> bool {
+            self.inner.paused()
+        }
+
         fn info(&self) -> &super::SignalInfo {
             &self.info
         }

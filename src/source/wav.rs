@@ -439,6 +439,10 @@ impl<R: Read + Send> Source for WavSource<R> {
     fn allow_block_bytes(&mut self, bytes: usize) {
         self.frames.allow_block_bytes(bytes)
     }
+
+    fn paused(&self) -> bool {
+        self.frames.paused()
+    }
 }
 
 #[cfg(test)]

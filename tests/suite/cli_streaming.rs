@@ -46,7 +46,7 @@ fn analyze_piped(args: &[&str]) -> std::process::Child {
 }
 
 /// The data rows of a child's standard output (its header skipped), each sent as it comes.
-fn data_rows(
+pub(crate) fn data_rows(
     stdout: std::process::ChildStdout,
 ) -> (
     std::sync::mpsc::Receiver<String>,

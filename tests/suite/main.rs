@@ -11,6 +11,7 @@ mod atomic_outputs;
 mod cli_analyze;
 mod cli_bench;
 mod cli_demo;
+mod cli_lockstep;
 mod cli_streaming;
 mod cli_summarize;
 mod cli_uff;

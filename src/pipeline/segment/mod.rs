@@ -40,6 +40,15 @@ pub struct Segmentation {
     pub floor_min_s: f64,
     /// How flat a floor is, dB ([`DEFAULT_FLOOR_FLAT_DB`]).
     pub floor_flat_db: f64,
+    /// A pause of the writer ends every open decay, as the end of the input would: nothing
+    /// arrived on a watched stream (standard input, a named pipe) for
+    /// [`crate::source::STREAM_PAUSE_MS`]. For a client that sends one record and waits for its
+    /// rows: with noise no band falls `end_drop_db`, and a record is far shorter than
+    /// `floor_min_s`, so its decay would stay open until the next hit or the end of the input.
+    /// Off by default: a writer that merely stalls would have its decay cut there, and the
+    /// rows would depend on the writer's timing.
+    #[serde(default)]
+    pub pause_ends_decays: bool,
 }
 
 /// Default of [`Segmentation::onset_level_db`]: a decay starts at its first sample within
@@ -84,6 +93,7 @@ impl Default for Segmentation {
             retrigger_jump_db: DEFAULT_RETRIGGER_JUMP_DB,
             floor_min_s: DEFAULT_FLOOR_MIN_S,
             floor_flat_db: DEFAULT_FLOOR_FLAT_DB,
+            pause_ends_decays: false,
         }
     }
 }

@@ -79,6 +79,10 @@ pub struct CsvSource<R: BufRead + Send> {
     partial: bool,
     /// Set while a pause would hand out what was read ([`CsvSource::waking_on_pause`]).
     pause_armed: Option<std::sync::Arc<std::sync::atomic::AtomicBool>>,
+    /// The last read returned early: the writer paused ([`Source::paused`]).
+    paused: bool,
+    /// A pause was reported and no line arrived since: the next read waits for one.
+    pause_told: bool,
 }
 
 impl<R: BufRead + Send> CsvSource<R> {
@@ -157,6 +161,8 @@ impl<R: BufRead + Send> CsvSource<R> {
             buf: Vec::new(),
             partial: false,
             pause_armed,
+            paused: false,
+            pause_told: false,
         };
         let first = match s.next_line()? {
             Line::Data(l, _) => l,
@@ -450,6 +456,7 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
         }
         let max_frames = max_frames.max(1);
         let mut got = 0;
+        self.paused = false;
         while got < max_frames {
             let row = if let Some(r) = self.queued.pop_front() {
                 r
@@ -462,19 +469,28 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
                 if self.done {
                     break;
                 }
-                self.arm_pause(got > 0);
+                // With rows in hand, or none but a pause not yet reported (told then with an
+                // empty block).
+                self.arm_pause(got > 0 || !self.pause_told);
                 let parsed = match self.next_line() {
-                    Ok(Line::Data(l, nl)) => self.parse_row(&l, nl).and_then(|row| {
-                        if self.check_time {
-                            self.check_spacing(row[0])?;
-                        }
-                        Ok(row)
-                    }),
+                    Ok(Line::Data(l, nl)) => {
+                        self.pause_told = false;
+                        self.parse_row(&l, nl).and_then(|row| {
+                            if self.check_time {
+                                self.check_spacing(row[0])?;
+                            }
+                            Ok(row)
+                        })
+                    }
                     Ok(Line::End) => {
                         self.done = true;
                         break;
                     }
-                    Ok(Line::Paused) => break,
+                    Ok(Line::Paused) => {
+                        self.paused = true;
+                        self.pause_told = true;
+                        break;
+                    }
                     Err(e) => Err(e),
                 };
                 match parsed {
@@ -502,9 +518,13 @@ impl<R: BufRead + Send> Source for CsvSource<R> {
         }
         self.arm_pause(false);
         self.frames_read += got as u64;
-        if got == 0 {
+        if got == 0 && !self.paused {
             return super::end_of_input(&mut self.pending, self.frames_read, &self.what);
         }
         Ok(true)
+    }
+
+    fn paused(&self) -> bool {
+        self.paused
     }
 }
