@@ -7,7 +7,10 @@ plate; none with CONTROL=1), recorded at 88 sensors between the nodes with noise
 mean signal power (seed = case + 1); the model is the same plate on COARSE (default 12,18)
 without the mass. Prints per case the truth and what `diagnose --fmax FMAX` (default 400) found.
 
-usage: CONTROL=1 LX=1.5 LY=2 H=0.01 FMAX=200 TAG=m \\
+SIM=kirchhoff takes the recordings from scripts/kirchhoff_sim.py (thin-plate theory, no mesh)
+instead of `dampscope simulate` on FINE.
+
+usage: CONTROL=1 LX=1.5 LY=2 H=0.01 FMAX=200 TAG=m SIM=kirchhoff \\
        scripts/coarse_model_probe.py BIN SEED N [FINE] [COARSE]
 Files go to /tmp/mp/<TAG><SEED>/ (TAG default "s").
 """
@@ -64,9 +67,17 @@ for case in range(N):
     if os.environ.get('CONTROL'): m = 0.0
     tm = f"{work}/truth{case}.toml"; model(tm, fnx, fny, (x, y, m) if m else None, sens)
     rec = f"{work}/rec{case}"; shutil.rmtree(rec, ignore_errors=True)
-    subprocess.run([BIN, "simulate", "--model", tm, "--out", rec, "--snr-db", "50",
-                    "--snr-definition", "mean-power", "--seed", str(case + 1)],
-                   check=True, capture_output=True)
+    if os.environ.get("SIM") == "kirchhoff":
+        # Another plate theory and discretisation (scripts/kirchhoff_sim.py: thin-plate
+        # Rayleigh-Ritz, no mesh); its noise is also defined on the mean signal power.
+        here = os.path.dirname(os.path.abspath(__file__))
+        subprocess.run([sys.executable, f"{here}/kirchhoff_sim.py", tm, "--out", rec,
+                        "--snr-db", "50", "--seed", str(case + 1), "--sensors", sens],
+                       check=True, capture_output=True)
+    else:
+        subprocess.run([BIN, "simulate", "--model", tm, "--out", rec, "--snr-db", "50",
+                        "--snr-definition", "mean-power", "--seed", str(case + 1)],
+                       check=True, capture_output=True)
     out = f"{work}/diag{case}"
     r = subprocess.run([BIN, "diagnose", rec, "--model", cm, "--out", out, "--fmax", FMAX],
                        capture_output=True, text=True)
