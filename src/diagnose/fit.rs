@@ -75,13 +75,13 @@ fn calibrated_rms_hz(evidence: &Evidence) -> f64 {
     residual_rms_hz(&f, &y, &[])
 }
 
-/// RMS of fₖ × (yₖ − its fit by 1, f, f² and `pattern` when it has one value per mode), Hz;
-/// NaN without modes.
-pub(super) fn residual_rms_hz(f_hz: &[f64], y: &[f64], pattern: &[f64]) -> f64 {
+/// RMS of fₖ × (yₖ − its fit by 1, f, f² and those `patterns` that have one value per mode),
+/// Hz; NaN without modes.
+pub(super) fn residual_rms_hz(f_hz: &[f64], y: &[f64], patterns: &[Vec<f64>]) -> f64 {
     if f_hz.is_empty() {
         return f64::NAN;
     }
-    let r = super::nuisance::Nuisance::new(f_hz, pattern).residual(y);
+    let r = super::nuisance::Nuisance::new(f_hz, patterns).residual(y);
     (r.iter()
         .zip(f_hz)
         .map(|(r, f)| (r * f).powi(2))

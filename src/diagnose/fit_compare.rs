@@ -25,7 +25,7 @@ const WORSE_FIT_RATIO: f64 = 1.1;
 /// unpaired fits worse whatever the rest says: its modes no longer match the structure's
 /// (found: a second finding, a region +75 % stiff over three quarters of a small plate, left no
 /// mode paired, and a comparison over no modes could not say worse).
-pub fn fits_worse(before: &Evidence, after: &Evidence, pattern: &[f64]) -> bool {
+pub fn fits_worse(before: &Evidence, after: &Evidence, patterns: &[Vec<f64>]) -> bool {
     let common: Vec<_> = before
         .pairs
         .iter()
@@ -42,12 +42,12 @@ pub fn fits_worse(before: &Evidence, after: &Evidence, pattern: &[f64]) -> bool 
         .iter()
         .map(|(b, _)| before.model[b.model].damped_frequency_hz)
         .collect();
-    let pattern: Vec<f64> = if common.iter().all(|(b, _)| b.model < pattern.len()) {
-        common.iter().map(|(b, _)| pattern[b.model]).collect()
-    } else {
-        Vec::new()
-    };
-    let rms = |y: Vec<f64>| residual_rms_hz(&f_hz, &y, &pattern);
+    let patterns: Vec<Vec<f64>> = patterns
+        .iter()
+        .filter(|pattern| common.iter().all(|(b, _)| b.model < pattern.len()))
+        .map(|pattern| common.iter().map(|(b, _)| pattern[b.model]).collect())
+        .collect();
+    let rms = |y: Vec<f64>| residual_rms_hz(&f_hz, &y, &patterns);
     let frequency_before = rms(common
         .iter()
         .map(|(b, _)| b.frequency_rel.ln_1p())
@@ -152,7 +152,7 @@ mod tests {
         assert!(!fits_worse(
             &evidence(&f, &before),
             &evidence(&f, &after),
-            &pattern
+            &[pattern.to_vec()]
         ));
         assert!(fits_worse(
             &evidence(&f, &before),

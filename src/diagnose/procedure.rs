@@ -13,7 +13,7 @@ use super::fit_compare::fits_worse;
 use super::hypothesis::Hypothesis;
 use super::mirror::resolve_images;
 use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
-use super::nuisance::discretisation_pattern;
+use super::nuisance::model_form_patterns;
 use super::refine::{self, refine, view_of};
 use super::regions::ModeShares;
 use super::report::{
@@ -178,8 +178,8 @@ pub fn diagnose_with_progress(
     let mut edges = boundary::EdgeCache::default();
     let (mut view, mut ev) = (base.with_loss_change(model)?, evidence.clone());
     for round in 0..MAX_FINDINGS {
-        let pattern = discretisation_pattern(&view, sensors)?;
-        let Some(scorer) = Scorer::new(&modes, &ev, &view, &pattern, settings.model_form_sigma)
+        let patterns = model_form_patterns(&view, sensors, &ev, settings.model_form_sigma)?;
+        let Some(scorer) = Scorer::new(&modes, &ev, &view, &patterns, settings.model_form_sigma)
         else {
             break;
         };
@@ -320,7 +320,7 @@ pub fn diagnose_with_progress(
         // frequency RMS 2.4 → 9.0 Hz).
         let rejected = if refined.amplitude() == Some(0.0) {
             Some(REJECTED_NO_SIZE)
-        } else if fits_worse(&ev, &next_ev, &pattern) {
+        } else if fits_worse(&ev, &next_ev, &patterns) {
             Some(REJECTED_FITS_WORSE)
         } else {
             None
@@ -350,9 +350,9 @@ pub fn diagnose_with_progress(
             let with_second = second.hypothesis.apply(model);
             let base2 = view_of(&base, &with_second, &second.hypothesis)?;
             let ev2 = Evidence::gather(&modes, base2.poles_at(sensors)?);
-            let pattern = discretisation_pattern(&base2, sensors)?;
+            let patterns = model_form_patterns(&base2, sensors, &ev2, settings.model_form_sigma)?;
             if let Some(scorer2) =
-                Scorer::new(&modes, &ev2, &base2, &pattern, settings.model_form_sigma)
+                Scorer::new(&modes, &ev2, &base2, &patterns, settings.model_form_sigma)
             {
                 let scan_amp = first.candidate.hypothesis.amplitude().unwrap_or(amp);
                 let mut c = first.candidate.clone();

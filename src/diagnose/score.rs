@@ -124,7 +124,7 @@ impl Scorer {
         measured: &[Mode],
         evidence: &Evidence,
         view: &ModelView,
-        pattern: &[f64],
+        patterns: &[Vec<f64>],
         form_sigma: f64,
     ) -> Option<Self> {
         let pairs: Vec<ModePair> = evidence.pairs_within(view).into_iter().copied().collect();
@@ -144,14 +144,12 @@ impl Scorer {
             .sum::<f64>()
             .max(1e-300);
         let log_frequency: Vec<f64> = pairs.iter().map(|p| p.frequency_rel.ln_1p()).collect();
-        let nuisance = Nuisance::new(
-            &model_frequency_hz,
-            &if pattern.len() >= view.count {
-                pairs.iter().map(|p| pattern[p.model]).collect::<Vec<_>>()
-            } else {
-                Vec::new()
-            },
-        );
+        let per_pair: Vec<Vec<f64>> = patterns
+            .iter()
+            .filter(|pattern| pattern.len() >= view.count)
+            .map(|pattern| pairs.iter().map(|p| pattern[p.model]).collect())
+            .collect();
+        let nuisance = Nuisance::new(&model_frequency_hz, &per_pair);
         let dof = (pairs.len() as f64 - nuisance.params()).max(1.0);
         let rss_floor = identification_floor.max(dof * form_sigma * form_sigma);
         Some(Self {

@@ -8,7 +8,7 @@ use crate::common;
 use dampscope::diagnose::evidence::{Evidence, ModelView};
 use dampscope::diagnose::hypothesis::Hypothesis;
 use dampscope::diagnose::mass::scan_point_mass;
-use dampscope::diagnose::nuisance::discretisation_pattern;
+use dampscope::diagnose::nuisance::model_form_patterns;
 use dampscope::diagnose::procedure::MIN_BIC_GAIN;
 use dampscope::diagnose::score::{Candidate, Scorer, DEFAULT_MODEL_FORM_SIGMA};
 use dampscope::modal::{identify, ModalSettings};
@@ -33,7 +33,7 @@ fn scan(set: &str) -> (Candidate, f64) {
         &modes,
         &evidence,
         &view,
-        &discretisation_pattern(&view, &sensors).unwrap(),
+        &model_form_patterns(&view, &sensors, &evidence, DEFAULT_MODEL_FORM_SIGMA).unwrap(),
         DEFAULT_MODEL_FORM_SIGMA,
     )
     .unwrap();

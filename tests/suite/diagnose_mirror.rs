@@ -7,7 +7,7 @@ use crate::common;
 use dampscope::diagnose::damping::scan_localized_damping;
 use dampscope::diagnose::evidence::{Evidence, ModelView};
 use dampscope::diagnose::mirror::{resolve_images, MIN_QUADRATURE_MARGIN};
-use dampscope::diagnose::nuisance::discretisation_pattern;
+use dampscope::diagnose::nuisance::model_form_patterns;
 use dampscope::diagnose::regions::ModeShares;
 use dampscope::diagnose::score::{Scorer, DEFAULT_MODEL_FORM_SIGMA};
 use dampscope::modal::{identify, ModalSettings};
@@ -29,7 +29,7 @@ fn the_complex_shapes_pick_the_true_patch_among_its_images() {
         &modes,
         &evidence,
         &view,
-        &discretisation_pattern(&view, &sensors).unwrap(),
+        &model_form_patterns(&view, &sensors, &evidence, DEFAULT_MODEL_FORM_SIGMA).unwrap(),
         DEFAULT_MODEL_FORM_SIGMA,
     )
     .unwrap();
