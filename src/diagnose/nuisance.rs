@@ -234,34 +234,24 @@ pub fn free_edge_twist_pattern(view: &ModelView) -> Result<Vec<f64>, SimError> {
     let (nx, ny) = (model.mesh.nx, model.mesh.ny);
     let (dx, dy) = (model.plate.lx / nx as f64, model.plate.ly / ny as f64);
     let pinned = model.pinned_edges()?;
-    // Corners (x0, y0, x1, y1) of the elements along each free edge.
+    // Corners (x0, y0, x1, y1) of the elements along each free edge, and their lengths along it.
     let mut elements: Vec<[f64; 4]> = Vec::new();
+    let mut lengths: Vec<f64> = Vec::new();
     for edge in [Edge::X0, Edge::X1, Edge::Y0, Edge::Y1] {
         if pinned.contains(&edge) {
             continue;
         }
-        match edge {
-            Edge::X0 | Edge::X1 => {
-                let i = if edge == Edge::X0 { 0 } else { nx - 1 };
-                for j in 0..ny {
-                    elements.push([
-                        i as f64 * dx,
-                        j as f64 * dy,
-                        (i + 1) as f64 * dx,
-                        (j + 1) as f64 * dy,
-                    ]);
-                }
-            }
-            Edge::Y0 | Edge::Y1 => {
-                let j = if edge == Edge::Y0 { 0 } else { ny - 1 };
-                for i in 0..nx {
-                    elements.push([
-                        i as f64 * dx,
-                        j as f64 * dy,
-                        (i + 1) as f64 * dx,
-                        (j + 1) as f64 * dy,
-                    ]);
-                }
+        let (columns, rows, length) = match edge {
+            Edge::X0 => (0..1, 0..ny, dy),
+            Edge::X1 => (nx - 1..nx, 0..ny, dy),
+            Edge::Y0 => (0..nx, 0..1, dx),
+            Edge::Y1 => (0..nx, ny - 1..ny, dx),
+        };
+        for i in columns {
+            for j in rows.clone() {
+                let (x0, y0) = (i as f64 * dx, j as f64 * dy);
+                elements.push([x0, y0, x0 + dx, y0 + dy]);
+                lengths.push(length);
             }
         }
     }
@@ -285,7 +275,8 @@ pub fn free_edge_twist_pattern(view: &ModelView) -> Result<Vec<f64>, SimError> {
         .map(|(n, w)| {
             let twist: f64 = w
                 .chunks_exact(4)
-                .map(|c| ((c[3] - c[2] - c[1] + c[0]) / (dx * dy)).powi(2))
+                .zip(&lengths)
+                .map(|(c, length)| ((c[3] - c[2] - c[1] + c[0]) / (dx * dy)).powi(2) * length)
                 .sum();
             let omega = 2.0 * std::f64::consts::PI * view.basis.frequencies_hz[n];
             twist / (omega * omega).max(1e-300)

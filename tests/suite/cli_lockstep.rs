@@ -66,12 +66,8 @@ fn analyze(input: &str, extra: &[&str]) -> Command {
     cmd
 }
 
-/// The data rows of `bytes` analysed as a file.
-fn file_rows(bytes: &[u8], name: &str, extra: &[&str]) -> Vec<String> {
-    let path = std::env::temp_dir().join(format!("dampscope-{name}-{}.f32", std::process::id()));
-    std::fs::write(&path, bytes).unwrap();
-    let out = analyze(path.to_str().unwrap(), extra).output().unwrap();
-    std::fs::remove_file(&path).ok();
+/// The data rows of a finished run's standard output (it must have succeeded).
+fn rows_of(out: std::process::Output) -> Vec<String> {
     assert!(
         out.status.success(),
         "{}",
@@ -81,15 +77,25 @@ fn file_rows(bytes: &[u8], name: &str, extra: &[&str]) -> Vec<String> {
     text.lines().skip(1).map(str::to_string).collect()
 }
 
-/// Sends each record, keeping the input open, and collects the rows that arrive within
-/// `wait` of it; then closes the input. Returns the rows per record and those that came only
-/// when the input closed.
+/// The data rows of `bytes` analysed as a file `name` by `command(path)`.
+fn file_rows(bytes: &[u8], name: &str, command: impl Fn(&str) -> Command) -> Vec<String> {
+    let path = std::env::temp_dir().join(format!("dampscope-{}-{name}", std::process::id()));
+    std::fs::write(&path, bytes).unwrap();
+    let out = command(path.to_str().unwrap()).output().unwrap();
+    std::fs::remove_file(&path).ok();
+    rows_of(out)
+}
+
+/// Runs `command` (reading standard input), sends each record keeping the input open, and
+/// collects the rows that arrive within `wait` of it (at most `rows_per_record`); then closes
+/// the input. Returns the rows per record and those that came only when the input closed.
 fn lockstep(
+    mut command: Command,
     records: &[Vec<u8>],
-    extra: &[&str],
+    rows_per_record: usize,
     wait: Duration,
 ) -> (Vec<Vec<String>>, Vec<String>) {
-    let mut child = analyze("-", extra)
+    let mut child = command
         .stdin(Stdio::piped())
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
@@ -103,7 +109,10 @@ fn lockstep(
         stdin.flush().unwrap();
         let deadline = std::time::Instant::now() + wait;
         let mut rows = Vec::new();
-        while let Some(left) = deadline.checked_duration_since(std::time::Instant::now()) {
+        while rows.len() < rows_per_record {
+            let Some(left) = deadline.checked_duration_since(std::time::Instant::now()) else {
+                break;
+            };
             match rx.recv_timeout(left) {
                 Ok(row) => rows.push(row),
                 Err(_) => break,
@@ -126,11 +135,16 @@ fn lockstep(
 fn a_writer_that_waits_gets_each_noisy_records_rows() {
     let first = noisy_record(12000, 1);
     let second = noisy_record(3 * 4096, 2);
-    let expected_first = file_rows(&first, "lockstep-first", &[]);
+    let expected_first = file_rows(&first, "lockstep-first.f32", |path| analyze(path, &[]));
     let per_record = expected_first.len();
     assert!(per_record >= CHANNELS * 5, "{per_record} rows");
     let records = [first, second];
-    let (got, after_close) = lockstep(&records, &["--pause-ends-decays"], Duration::from_secs(5));
+    let (got, after_close) = lockstep(
+        analyze("-", &["--pause-ends-decays"]),
+        &records,
+        per_record,
+        Duration::from_secs(5),
+    );
     assert_eq!(
         got[0], expected_first,
         "the first record's rows differ from the file's"
@@ -145,7 +159,7 @@ fn a_writer_that_waits_gets_each_noisy_records_rows() {
         "rows only at the close: {after_close:?}"
     );
     // The default leaves a decay open at a pause: its rows come with the next record.
-    let (got, _) = lockstep(&records[..1], &[], Duration::from_secs(1));
+    let (got, _) = lockstep(analyze("-", &[]), &records[..1], 1, Duration::from_secs(1));
     assert!(
         got[0].is_empty(),
         "rows at a pause without the option: {:?}",
@@ -159,25 +173,13 @@ fn a_writer_that_waits_gets_each_noisy_records_rows() {
 #[test]
 fn a_stalled_writer_without_the_option_gets_the_files_rows() {
     let record = noisy_record(3 * 4096, 3);
-    let expected = file_rows(&record, "stall", &[]);
+    let expected = file_rows(&record, "stall.f32", |path| analyze(path, &[]));
     for stall_frames in [4096, 6000] {
-        let cut = stall_frames * CHANNELS * 4;
-        let mut child = analyze("-", &[])
-            .stdin(Stdio::piped())
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("binary runs");
-        let mut stdin = child.stdin.take().unwrap();
-        stdin.write_all(&record[..cut]).unwrap();
-        stdin.flush().unwrap();
-        std::thread::sleep(Duration::from_millis(600));
-        stdin.write_all(&record[cut..]).unwrap();
-        drop(stdin);
-        let out = child.wait_with_output().unwrap();
-        assert!(out.status.success());
-        let text = String::from_utf8(out.stdout).unwrap();
-        let rows: Vec<String> = text.lines().skip(1).map(str::to_string).collect();
+        let (before, after) = record.split_at(stall_frames * CHANNELS * 4);
+        let parts = [before.to_vec(), after.to_vec()];
+        let wait = Duration::from_millis(600);
+        let (got, at_close) = lockstep(analyze("-", &[]), &parts, usize::MAX, wait);
+        let rows: Vec<String> = got.concat().into_iter().chain(at_close).collect();
         assert_eq!(rows, expected, "stall after {stall_frames} frames");
     }
 }
@@ -197,48 +199,18 @@ fn a_csv_writer_that_waits_gets_its_records_rows() {
         text.push_str(&cells.join(","));
         text.push('\n');
     }
-    let args = ["--fs", "4096", "--bands", "octave"];
-    let path = std::env::temp_dir().join(format!("dampscope-lockstep-{}.csv", std::process::id()));
-    std::fs::write(&path, &text).unwrap();
-    let out = Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .arg("analyze")
-        .arg(&path)
-        .args(args)
-        .output()
-        .unwrap();
-    std::fs::remove_file(&path).ok();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let csv = |input: &str, extra: &[&str]| {
+        let mut cmd = Command::new(env!("CARGO_BIN_EXE_dampscope"));
+        cmd.args(["analyze", input, "--fs", "4096", "--bands", "octave"])
+            .args(extra);
+        cmd
+    };
+    let expected = file_rows(text.as_bytes(), "lockstep.csv", |path| csv(path, &[]));
+    let (got, _) = lockstep(
+        csv("-", &["--pause-ends-decays"]),
+        &[text.into_bytes()],
+        expected.len(),
+        Duration::from_secs(5),
     );
-    let expected: Vec<String> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(str::to_string)
-        .collect();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_dampscope"))
-        .args(["analyze", "-", "--pause-ends-decays"])
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("binary runs");
-    let (rx, reader) = data_rows(child.stdout.take().unwrap());
-    let mut stdin = child.stdin.take().unwrap();
-    stdin.write_all(text.as_bytes()).unwrap();
-    stdin.flush().unwrap();
-    let mut rows = Vec::new();
-    while rows.len() < expected.len() {
-        match rx.recv_timeout(Duration::from_secs(5)) {
-            Ok(row) => rows.push(row),
-            Err(_) => break,
-        }
-    }
-    drop(stdin);
-    assert!(child.wait().unwrap().success());
-    reader.join().unwrap();
-    assert_eq!(rows, expected, "rows while the input was open");
+    assert_eq!(got[0], expected, "rows while the input was open");
 }

@@ -168,18 +168,23 @@ fn diagnose_at(set: &Path, model: &Model, seed: u64) -> Diagnosis {
     diagnose(&rec, &sensors, model, &settings).expect("a diagnosis")
 }
 
-/// The right model, coarser than the recordings: no physics, for two noise seeds.
-#[test]
-fn a_coarse_right_model_gets_no_finding() {
-    let (set, model, dir) = recordings("coarse-control", "");
-    for seed in [1, 2] {
-        let d = diagnose_at(&set, &model, seed);
+/// `diagnose` of `set` against `model` names no physics, for each noise seed of `seeds`.
+fn assert_no_physics(set: &Path, model: &Model, seeds: &[u64]) {
+    for &seed in seeds {
+        let d = diagnose_at(set, model, seed);
         assert!(
             common::physics(&d).is_empty(),
             "seed {seed}: {:?}",
             d.findings
         );
     }
+}
+
+/// The right model, coarser than the recordings: no physics, for two noise seeds.
+#[test]
+fn a_coarse_right_model_gets_no_finding() {
+    let (set, model, dir) = recordings("coarse-control", "");
+    assert_no_physics(&set, &model, &[1, 2]);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -268,12 +273,5 @@ fn a_kirchhoff_recording_of_the_right_model_gets_no_finding() {
     let set = PathBuf::from(common::data("diagnose/small-plate-kirchhoff-control"));
     let model = Model::from_toml_str(&plate(SMALL, (12, 18), "sensors = { nx = 9, ny = 13 }", ""))
         .expect("the coarse model");
-    for seed in [1, 2] {
-        let d = diagnose_at(&set, &model, seed);
-        assert!(
-            common::physics(&d).is_empty(),
-            "seed {seed}: {:?}",
-            d.findings
-        );
-    }
+    assert_no_physics(&set, &model, &[1, 2]);
 }
