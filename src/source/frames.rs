@@ -254,8 +254,7 @@ pub(crate) struct FrameReader<R> {
     pause_fd: Option<i32>,
     /// The last read returned early: the writer paused ([`FrameReader::paused`]).
     paused: bool,
-    /// A pause was reported and nothing arrived since: the next read waits for bytes without
-    /// reporting the same pause again.
+    /// A pause was told and nothing arrived since (a pause is told once).
     pause_told: bool,
 }
 
@@ -360,8 +359,7 @@ impl<R: Read> FrameReader<R> {
             .is_none_or(|fd| super::pipe::arrives_within(fd, STREAM_PAUSE_MS))
     }
 
-    /// Whether the last read handed out a block not yet full because nothing arrived for
-    /// [`STREAM_PAUSE_MS`] (see [`super::Source::paused`]).
+    /// The last read stopped at the writer's pause ([`super::Source::paused`]).
     pub(crate) fn paused(&self) -> bool {
         self.paused
     }
@@ -513,9 +511,8 @@ impl<R: Read> FrameReader<R> {
         let mut eof = false;
         self.paused = false;
         while self.read.have < want {
-            // With a frame in hand, or none but a pause not yet reported: a writer that waits
-            // for its rows gets them (and the pause is told even when the frames it sent
-            // filled whole blocks).
+            // With a frame in hand, or none and the pause not yet told (the frames sent may
+            // have filled whole blocks): a writer that waits for its rows gets them.
             if (self.read.have >= fb || !self.pause_told) && !self.arrives_soon() {
                 self.paused = true;
                 self.pause_told = true;
@@ -558,8 +555,7 @@ impl<R: Read> FrameReader<R> {
             read.keep_partial();
         }
         self.frames_read += whole as u64;
-        // A pause with no new whole frame is told with an empty block.
-        let tells_pause = self.paused && !self.done;
+        let tells_pause = self.paused && !self.done; // with an empty block, if need be
         if whole == 0 && !tells_pause {
             return super::end_of_input(&mut self.pending, self.frames_read, &self.what);
         }
