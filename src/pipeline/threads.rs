@@ -49,8 +49,8 @@ enum ToWorker {
     End {
         truncated: bool,
     },
-    /// The writer paused after the last block: decays on their noise floor may end
-    /// ([`ChannelAnalyzer::pause`]).
+    /// The writer paused after the last block: with `pause_ends_decays` every open decay
+    /// ends ([`ChannelAnalyzer::pause`]).
     Pause,
 }
 
