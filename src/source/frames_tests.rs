@@ -2,6 +2,7 @@
 //! finiteness flags of the f32 kernel.
 
 use super::*;
+use crate::frontend::simd::Isa;
 
 /// The tiled, per-codec decoder against one sample at a time, for every codec, channel
 /// counts around the tile and the 8-channel groups, and frame counts that leave a partial
