@@ -11,6 +11,7 @@ use super::evidence::{Evidence, ModelView};
 use super::fit::{compare_frfs, measures, FitBeforeAfter};
 use super::fit_compare::fits_worse;
 use super::hypothesis::Hypothesis;
+use super::mass::place_between_grid_points;
 use super::mirror::resolve_images;
 use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
 use super::nuisance::model_form_patterns;
@@ -282,20 +283,19 @@ pub fn diagnose_with_progress(
             &resolved.hypothesis,
         )?;
         // Place and size refitted together for a stiffness change, whose first-order scan
-        // places a strong change too large and too weak (a mass is a point, a loss region's
-        // place was chosen by the shapes among what the damping allows: they stay).
-        let (refined, chosen) = if !matches!(refined, Hypothesis::StiffnessChange { .. }) {
-            (refined, chosen)
-        } else {
-            let rescan = |s: &Scorer| rescan(&chosen.hypothesis, s, &view, &shares);
-            refine::refit(
-                &modes,
-                sensors,
-                &view,
-                &scorer,
-                (refined, chosen.clone()),
-                &rescan,
-            )?
+        // places a strong change too large and too weak; a mass is placed between the grid's
+        // points (a loss region's place was chosen by the shapes among what the damping
+        // allows: it stays).
+        let (refined, chosen) = match refined {
+            Hypothesis::StiffnessChange { .. } => {
+                let rescan = |s: &Scorer| rescan(&chosen.hypothesis, s, &view, &shares);
+                let start = (refined, chosen.clone());
+                refine::refit(&modes, sensors, &view, &scorer, start, &rescan)?
+            }
+            Hypothesis::AddedMass { .. } => {
+                place_between_grid_points(&modes, sensors, &view, &scorer, (refined, chosen))?
+            }
+            _ => (refined, chosen),
         };
         let unsettled: Vec<Hypothesis> = resolved
             .images
