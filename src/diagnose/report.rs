@@ -387,8 +387,10 @@ impl Diagnosis {
         let rejected = self.families.iter().find_map(|f| {
             let worse = "the model updated with it fits the recordings worse";
             let no_size = "refitted through the re-solved model, its size came to no change";
+            let alone = "found beside a change that came to nothing, it explains too little alone";
             (f.kind.strip_suffix(REJECTED_FITS_WORSE).map(|k| (k, worse)))
                 .or_else(|| f.kind.strip_suffix(REJECTED_NO_SIZE).map(|k| (k, no_size)))
+                .or_else(|| f.kind.strip_suffix(REJECTED_NOT_ALONE).map(|k| (k, alone)))
         });
         match (self.is_clean(), rejected) {
             (true, None) => {
@@ -441,6 +443,10 @@ pub const REJECTED_FITS_WORSE: &str = " (rejected: fits worse)";
 /// What a [`FamilyScore`]'s kind ends with when the round's best candidate, refitted through the
 /// re-solved model, came to no change at all (a mass of 0 kg, a loss of 0).
 pub const REJECTED_NO_SIZE: &str = " (rejected: no size left)";
+
+/// What a [`FamilyScore`]'s kind ends with when a second finding, once the first came to no
+/// change beside it, does not beat "no change" alone by the bar of a finding.
+pub const REJECTED_NOT_ALONE: &str = " (rejected: too little alone)";
 
 /// Why a local damping map alone would not show a finding of this kind.
 pub fn why_maps_miss(kind: &str) -> &'static str {
