@@ -158,6 +158,38 @@ fn offset_on_small_plate_m(found: (f64, f64), (tx, ty): (f64, f64)) -> f64 {
         .fold(f64::INFINITY, f64::min)
 }
 
+/// A point mass of `mass_kg` at (`x_m`, `y_m`), as a model's TOML table.
+fn point_mass_toml((x_m, y_m, mass_kg): (f64, f64, f64)) -> String {
+    format!("[[point_mass]]\nx = {x_m}\ny = {y_m}\nmass = {mass_kg}\n")
+}
+
+/// The small plate on 36 × 54 with a point mass `truth` (x, y in m, mass in kg), recorded at
+/// 50 dB on mean power (`seed`) and diagnosed by the CLI against the 12 × 18 model to 400 Hz:
+/// the directory, the standard output and `diagnosis.json`.
+fn diagnose_small_with_mass(
+    name: &str,
+    truth: (f64, f64, f64),
+    seed: u64,
+) -> (PathBuf, String, serde_json::Value) {
+    let meshes = ((36, 54), (12, 18));
+    diagnose_noisy(name, SMALL, meshes, &point_mass_toml(truth), seed, "400")
+}
+
+/// The findings of `diagnosis.json` other than the noise floor.
+fn physics_in(json: &serde_json::Value) -> Vec<&serde_json::Value> {
+    let all = json["findings"].as_array().expect("a findings array");
+    all.iter().filter(|f| f["kind"] != "noise_floor").collect()
+}
+
+/// A finding's place (x, y) and mass from `diagnosis.json`.
+fn place_and_mass(found: &serde_json::Value) -> ((f64, f64), f64) {
+    let at = |k: &str| found["point"][k].as_f64().unwrap();
+    (
+        (at("x"), at("y")),
+        found["parameters"]["mass_kg"].as_f64().unwrap(),
+    )
+}
+
 /// `diagnose` of `set` at 50 dB on mean power (`seed`) against `model`.
 fn diagnose_at(set: &Path, model: &Model, seed: u64) -> Diagnosis {
     let (rec, sensors) = common::noisy_set(set.to_str().unwrap(), 50.0, seed);
@@ -194,7 +226,7 @@ fn a_coarse_right_model_gets_no_finding() {
 #[test]
 fn a_mass_on_a_coarse_model_is_found_alone() {
     let (tx, ty, tm) = (0.869, 0.797, 2.87);
-    let mass = format!("[[point_mass]]\nx = {tx}\ny = {ty}\nmass = {tm}\n");
+    let mass = point_mass_toml((tx, ty, tm));
     let (set, model, dir) = recordings("coarse-mass", &mass);
     let d = diagnose_at(&set, &model, 12);
     let physics = common::physics(&d);
@@ -219,12 +251,7 @@ fn a_mass_on_a_coarse_model_is_found_alone() {
 fn a_size_refitted_to_nothing_is_no_finding() {
     let meshes = ((48, 66), (16, 22));
     let (dir, stdout, json) = diagnose_noisy("coarse-thin", (1.5, 2.0, 0.01), meshes, "", 1, "200");
-    let physics: Vec<_> = json["findings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|f| f["kind"] != "noise_floor")
-        .collect();
+    let physics = physics_in(&json);
     assert!(physics.is_empty(), "{physics:?}\n{stdout}");
     assert!(
         stdout.contains("added_mass, was rejected because refitted through the re-solved model"),
@@ -241,10 +268,10 @@ fn a_size_refitted_to_nothing_is_no_finding() {
 /// alone when the first is dropped. Asserted: no stiffer region, and the report says why.
 #[test]
 fn a_second_finding_left_alone_must_pay_alone() {
-    let mass = "[[point_mass]]\nx = 0.902\ny = 0.22\nmass = 1.83\n";
+    let mass = point_mass_toml((0.902, 0.22, 1.83));
     let meshes = ((48, 66), (16, 22));
     let dims = (1.5, 2.0, 0.01);
-    let (dir, stdout, json) = diagnose_noisy("coarse-thin-alone", dims, meshes, mass, 4, "200");
+    let (dir, stdout, json) = diagnose_noisy("coarse-thin-alone", dims, meshes, &mass, 4, "200");
     let kinds: Vec<&str> = json["findings"]
         .as_array()
         .unwrap()
@@ -270,21 +297,15 @@ fn a_second_finding_left_alone_must_pay_alone() {
 #[test]
 fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
     let (tx, ty, tm) = (0.559, 0.166, 1.26);
-    let mass = format!("[[point_mass]]\nx = {tx}\ny = {ty}\nmass = {tm}\n");
-    let meshes = ((36, 54), (12, 18));
-    let (dir, _, json) = diagnose_noisy("coarse-edge", SMALL, meshes, &mass, 6, "400");
+    let (dir, _, json) = diagnose_small_with_mass("coarse-edge", (tx, ty, tm), 6);
     let found = json["findings"]
         .as_array()
         .unwrap()
         .iter()
         .find(|f| f["kind"] == "added_mass")
         .unwrap_or_else(|| panic!("no mass: {}", json["findings"]));
-    let (x, y) = (
-        found["point"]["x"].as_f64().unwrap(),
-        found["point"]["y"].as_f64().unwrap(),
-    );
+    let ((x, y), m) = place_and_mass(found);
     let off = offset_on_small_plate_m((x, y), (tx, ty));
-    let m = found["parameters"]["mass_kg"].as_f64().unwrap();
     assert!(off < 0.15 && m < 2.5 * tm, "{m} kg at ({x}, {y}): {found}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -298,24 +319,13 @@ fn a_mass_near_a_pinned_edge_is_not_moved_onto_it() {
 #[test]
 fn a_mass_between_grid_points_is_placed_and_weighed_there() {
     let (tx, ty, tm) = (0.716, 0.477, 3.31);
-    let mass = format!("[[point_mass]]\nx = {tx}\ny = {ty}\nmass = {tm}\n");
-    let meshes = ((36, 54), (12, 18));
-    let (dir, stdout, json) = diagnose_noisy("coarse-between", SMALL, meshes, &mass, 4, "400");
-    let physics: Vec<_> = json["findings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .filter(|f| f["kind"] != "noise_floor")
-        .collect();
+    let (dir, stdout, json) = diagnose_small_with_mass("coarse-between", (tx, ty, tm), 4);
+    let physics = physics_in(&json);
     assert_eq!(physics.len(), 1, "{physics:?}\n{stdout}");
     let found = physics[0];
     assert_eq!(found["kind"], "added_mass", "{found}");
-    let (x, y) = (
-        found["point"]["x"].as_f64().unwrap(),
-        found["point"]["y"].as_f64().unwrap(),
-    );
-    let off = offset_on_small_plate_m((x, y), (tx, ty));
-    let m = found["parameters"]["mass_kg"].as_f64().unwrap();
+    let (place, m) = place_and_mass(found);
+    let off = offset_on_small_plate_m(place, (tx, ty));
     assert!(off < 0.1, "{off} m: {found}");
     assert!(common::rel_err(m, tm) < 0.25, "{m} kg: {found}");
     let _ = std::fs::remove_dir_all(&dir);
