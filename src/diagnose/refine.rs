@@ -166,17 +166,23 @@ pub fn solved_bic(
     params: f64,
     locations: f64,
 ) -> Result<f64, SimError> {
+    let model = h.apply(&base.model);
+    let view = view_of(base, &model, h)?;
+    let after = Evidence::gather(measured, view.poles_at(sensors)?);
+    Ok(bic_of_update(scorer, &after, params, locations))
+}
+
+/// [`solved_bic`] of an update whose evidence (the model with the change, against the same
+/// measured modes) is `after`.
+pub fn bic_of_update(scorer: &Scorer, after: &Evidence, params: f64, locations: f64) -> f64 {
     let mut explained = Prediction::none(scorer.n());
-    for (k, effect) in solved_effect(measured, sensors, base, scorer, h)?
-        .into_iter()
-        .enumerate()
-    {
+    for (k, effect) in effect_on_pairs(scorer, after).into_iter().enumerate() {
         if let Some((a, b)) = effect {
             explained.log_frequency[k] = a;
             explained.damping[k] = b;
         }
     }
-    Ok(scorer.bic(&explained, params, locations))
+    scorer.bic(&explained, params, locations)
 }
 
 /// What `h` does to each of `scorer`'s pairs through the re-solved model: the evidence before
@@ -192,7 +198,13 @@ fn solved_effect(
     let model = h.apply(&base.model);
     let view = view_of(base, &model, h)?;
     let after = Evidence::gather(measured, view.poles_at(sensors)?);
-    Ok(scorer
+    Ok(effect_on_pairs(scorer, &after))
+}
+
+/// The evidence of `scorer`'s pairs less the evidence `after` an update, per pair; `None` for a
+/// pair `after` no longer pairs.
+fn effect_on_pairs(scorer: &Scorer, after: &Evidence) -> Vec<Option<(f64, f64)>> {
+    scorer
         .pairs
         .iter()
         .enumerate()
@@ -208,7 +220,7 @@ fn solved_effect(
                     )
                 })
         })
-        .collect())
+        .collect()
 }
 
 /// Most re-solves of one refinement.

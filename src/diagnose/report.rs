@@ -387,10 +387,14 @@ impl Diagnosis {
         let rejected = self.families.iter().find_map(|f| {
             let worse = "the model updated with it fits the recordings worse";
             let no_size = "refitted through the re-solved model, its size came to no change";
-            let alone = "found beside a change that came to nothing, it explains too little alone";
             (f.kind.strip_suffix(REJECTED_FITS_WORSE).map(|k| (k, worse)))
                 .or_else(|| f.kind.strip_suffix(REJECTED_NO_SIZE).map(|k| (k, no_size)))
-                .or_else(|| f.kind.strip_suffix(REJECTED_NOT_ALONE).map(|k| (k, alone)))
+                .or_else(|| {
+                    let why = "through the re-solved model it explains too little";
+                    f.kind
+                        .strip_suffix(REJECTED_NOT_BORNE_OUT)
+                        .map(|k| (k, why))
+                })
         });
         match (self.is_clean(), rejected) {
             (true, None) => {
@@ -444,9 +448,9 @@ pub const REJECTED_FITS_WORSE: &str = " (rejected: fits worse)";
 /// re-solved model, came to no change at all (a mass of 0 kg, a loss of 0).
 pub const REJECTED_NO_SIZE: &str = " (rejected: no size left)";
 
-/// What a [`FamilyScore`]'s kind ends with when a second finding, once the first came to no
-/// change beside it, does not beat "no change" alone by the bar of a finding.
-pub const REJECTED_NOT_ALONE: &str = " (rejected: too little alone)";
+/// What a [`FamilyScore`]'s kind ends with when the round's best candidate, through the
+/// re-solved model, no longer beats "no change" by [`super::procedure::MIN_BIC_GAIN`].
+pub const REJECTED_NOT_BORNE_OUT: &str = " (rejected: not borne out once re-solved)";
 
 /// Why a local damping map alone would not show a finding of this kind.
 pub fn why_maps_miss(kind: &str) -> &'static str {
