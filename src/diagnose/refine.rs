@@ -106,9 +106,7 @@ pub fn refine(
     let w = &scorer.damping_weight;
     // The size change the misfit left by `h` (solved) asks for, to first order.
     let step = |h: &Hypothesis| -> Result<Option<f64>, SimError> {
-        let model = h.apply(&base.model);
-        let view = view_of(base, &model, h)?;
-        let after = Evidence::gather(measured, view.poles_at(sensors)?);
+        let after = evidence_with(measured, sensors, base, h)?;
         let (mut y, mut r, mut sa, mut sb) =
             (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
         for (k, p) in scorer.pairs.iter().enumerate() {
@@ -166,10 +164,21 @@ pub fn solved_bic(
     params: f64,
     locations: f64,
 ) -> Result<f64, SimError> {
+    let after = evidence_with(measured, sensors, base, h)?;
+    Ok(bic_of_update(scorer, &after, params, locations))
+}
+
+/// `measured` against `base`'s model with `h` applied (solved again unless `h` changes the loss
+/// only).
+fn evidence_with(
+    measured: &[Mode],
+    sensors: &[SensorPosition],
+    base: &ModelView,
+    h: &Hypothesis,
+) -> Result<Evidence, SimError> {
     let model = h.apply(&base.model);
     let view = view_of(base, &model, h)?;
-    let after = Evidence::gather(measured, view.poles_at(sensors)?);
-    Ok(bic_of_update(scorer, &after, params, locations))
+    Ok(Evidence::gather(measured, view.poles_at(sensors)?))
 }
 
 /// [`solved_bic`] of an update whose evidence (the model with the change, against the same
@@ -195,9 +204,7 @@ fn solved_effect(
     scorer: &Scorer,
     h: &Hypothesis,
 ) -> Result<Vec<Option<(f64, f64)>>, SimError> {
-    let model = h.apply(&base.model);
-    let view = view_of(base, &model, h)?;
-    let after = Evidence::gather(measured, view.poles_at(sensors)?);
+    let after = evidence_with(measured, sensors, base, h)?;
     Ok(effect_on_pairs(scorer, &after))
 }
 
