@@ -4,7 +4,8 @@
 //! candidate points, ln(f_measured/f_model) = nuisance + m·(−½φ_i(q)²) is fitted by least
 //! squares with m ≥ 0 (the nuisance: the model-form offset and f² drift); the best point and
 //! the points that fit equally well (the plate's mirror images) become one candidate, scored
-//! with three parameters (m, x, y) among as many locations as the grid has points.
+//! with three parameters (m, x, y) among as many locations as the grid has points. Once
+//! chosen, a mass is placed between the grid's points ([`place_between_grid_points`]).
 
 use super::evidence::ModelView;
 use super::hypothesis::Hypothesis;
@@ -58,10 +59,10 @@ pub const MASS_PLACE_SUBDIVISION: f64 = 5.0;
 pub const MASS_PLACE_MIN_BIC_GAIN: f64 = 2.0;
 
 /// A found mass (`coarse`: the refined finding, with the `candidate` its scan gave) placed
-/// between the coarse grid's points: place and size refitted together ([`refine::refit`]) on a grid of
-/// [`MASS_GRID_SPACING_M`] / [`MASS_PLACE_SUBDIVISION`] within one coarse spacing of its point,
-/// kept when the re-solved model scores better by [`MASS_PLACE_MIN_BIC_GAIN`]. A coarse point
-/// lies up to 0.035 m from the mass, where φ² changes fast enough to size it 30–40 % too
+/// between the coarse grid's points: place and size refitted together ([`refine::refit`]) on a
+/// grid of [`MASS_GRID_SPACING_M`] / [`MASS_PLACE_SUBDIVISION`] within one coarse spacing of its
+/// point, kept when the re-solved model scores better by [`MASS_PLACE_MIN_BIC_GAIN`]. A coarse
+/// point lies up to 0.035 m from the mass, where φ² changes fast enough to size it 30–42 % too
 /// heavy (found on 1 × 1.5 m plates: 3.28 kg sized 4.28 kg at 0.03 m, 3.31 kg sized 4.71 kg
 /// with a false stiffer region beside it).
 pub fn place_between_grid_points(
