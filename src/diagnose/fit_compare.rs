@@ -10,7 +10,7 @@ pub const MAX_LOST_PAIRS_FRACTION: f64 = 0.25;
 
 /// Relative growth of the calibrated frequency RMS beyond which an update fits worse
 /// ([`fits_worse`]), unless its damping RMS fell by as much.
-const WORSE_FIT_RATIO: f64 = 1.1;
+pub const WORSE_FIT_RATIO: f64 = 1.1;
 
 /// Whether the model behind `after` fits the measured modes worse than the one behind `before`:
 /// its frequency RMS with the model-form nuisance fitted away (offset, trends in f and f², and
