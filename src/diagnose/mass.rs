@@ -22,12 +22,17 @@ pub const MASS_GRID_SPACING_M: f64 = 0.05;
 /// (the same φ² by symmetry).
 const IMAGE_RSS_REL: f64 = 1e-3;
 
-/// The candidate points: a grid of `spacing_m` over the plate, symmetric about its centre.
-fn grid(lx_m: f64, ly_m: f64, spacing_m: f64) -> Vec<SensorPosition> {
-    let (nx, ny) = (
+/// Points along x and y of the candidate grid of `spacing_m` over an `lx_m` × `ly_m` plate.
+fn grid_size(lx_m: f64, ly_m: f64, spacing_m: f64) -> (usize, usize) {
+    (
         (lx_m / spacing_m).round().max(1.0) as usize,
         (ly_m / spacing_m).round().max(1.0) as usize,
-    );
+    )
+}
+
+/// The candidate points: a grid of `spacing_m` over the plate, symmetric about its centre.
+fn grid(lx_m: f64, ly_m: f64, spacing_m: f64) -> Vec<SensorPosition> {
+    let (nx, ny) = grid_size(lx_m, ly_m, spacing_m);
     let mut out = Vec::with_capacity(nx * ny);
     for j in 0..ny {
         for i in 0..nx {
@@ -78,6 +83,10 @@ pub fn place_between_grid_points(
     let rescan = |s: &Scorer| scan_point_mass_near(s, view, (x_m, y_m));
     let start = (coarse.clone(), candidate.clone());
     let (fine, fine_candidate) = refine::refit(measured, sensors, view, scorer, start, &rescan)?;
+    if fine == coarse {
+        // Nothing moved: no re-solve is needed to compare the two.
+        return Ok((coarse, candidate));
+    }
     let solved = |h: &Hypothesis| {
         refine::solved_bic(
             measured,
@@ -130,7 +139,8 @@ fn scan_point_mass_near(
             }
         }
     }
-    let coarse = grid(plate.lx, plate.ly, MASS_GRID_SPACING_M).len() as f64;
+    let (nx, ny) = grid_size(plate.lx, plate.ly, MASS_GRID_SPACING_M);
+    let coarse = (nx * ny) as f64;
     Ok(scan_points(scorer, view, &points, coarse)?.map(|mut c| {
         c.images.clear();
         c
