@@ -40,6 +40,7 @@ pub mod procedure;
 pub mod refine;
 pub mod regions;
 pub mod report;
+pub mod reweigh;
 pub mod score;
 pub mod stiffness;
 pub mod viscoelastic;

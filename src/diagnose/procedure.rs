@@ -15,12 +15,13 @@ use super::mass::place_between_grid_points;
 use super::mirror::resolve_images;
 use super::noise::{channel_snr_db, median_snr_db, REPORT_BELOW_SNR_DB};
 use super::nuisance::model_form_patterns;
-use super::refine::{self, bic_of_update, refine, view_of};
+use super::refine::{self, bic_of_update, view_of};
 use super::regions::ModeShares;
 use super::report::{
     Diagnosis, FamilyScore, Finding, RunnerUp, REJECTED_FITS_WORSE, REJECTED_NOT_BORNE_OUT,
     REJECTED_NO_SIZE,
 };
+use super::reweigh::{reweigh_first, FirstFinding};
 use super::score::{Candidate, Prediction, Scorer, DEFAULT_MODEL_FORM_SIGMA};
 use crate::modal::{identify, ModalError, ModalSettings, Recordings};
 use crate::sim::error::SimError;
@@ -135,6 +136,22 @@ struct Kept {
     finding: Finding,
 }
 
+impl Kept {
+    /// This finding with its size refitted to `reweighed`; its evidence, images and
+    /// confidence stay those of its round.
+    fn resize(&mut self, reweighed: Hypothesis, model: &Model) {
+        let old = &self.finding;
+        self.finding = Finding {
+            images: old.images.clone(),
+            confidence: old.confidence,
+            bic_gain: old.bic_gain,
+            runner_up: old.runner_up.clone(),
+            ..Finding::of(&reweighed, &[], model)
+        };
+        self.hypothesis = reweighed;
+    }
+}
+
 /// [`diagnose`], telling `progress` what it is doing.
 pub fn diagnose_with_progress(
     rec: &Recordings,
@@ -182,6 +199,7 @@ pub fn diagnose_with_progress(
     for round in 0..MAX_FINDINGS {
         let patterns = model_form_patterns(&view, sensors, &ev, settings.model_form_sigma)?;
         let Some(scorer) = Scorer::new(&modes, &ev, &view, &patterns, settings.model_form_sigma)
+            .map(|s| s.with_damping_form_of(&evidence))
         else {
             break;
         };
@@ -238,15 +256,7 @@ pub fn diagnose_with_progress(
                     kind: format!("{} (resized)", r.hypothesis.kind()),
                     bic_gain: none - r.bic,
                 });
-                kept[i].hypothesis = r.hypothesis.clone();
-                let old = kept[i].finding.clone();
-                kept[i].finding = Finding {
-                    images: old.images.clone(),
-                    confidence: old.confidence,
-                    bic_gain: old.bic_gain,
-                    runner_up: old.runner_up.clone(),
-                    ..Finding::of(&r.hypothesis, &[], model)
-                };
+                kept[i].resize(r.hypothesis.clone(), model);
                 let updated = kept
                     .iter()
                     .fold(model.clone(), |m, k| k.hypothesis.apply(&m));
@@ -353,43 +363,35 @@ pub fn diagnose_with_progress(
     if kept.len() == 2 {
         progress("weighing the first finding against the model with the second");
         let (first, second) = (&kept[0], &kept[1]);
-        if let Some(amp) = first.hypothesis.amplitude() {
-            let with_second = second.hypothesis.apply(model);
-            let base2 = view_of(&base, &with_second, &second.hypothesis)?;
-            let ev2 = Evidence::gather(&modes, base2.poles_at(sensors)?);
-            let patterns = model_form_patterns(&base2, sensors, &ev2, settings.model_form_sigma)?;
-            if let Some(scorer2) =
-                Scorer::new(&modes, &ev2, &base2, &patterns, settings.model_form_sigma)
-            {
-                let scan_amp = first.candidate.hypothesis.amplitude().unwrap_or(amp);
-                let mut c = first.candidate.clone();
-                let scale = if scan_amp != 0.0 { amp / scan_amp } else { 1.0 };
-                c.prediction = c.prediction.realigned(&first.scorer, &scorer2, scale);
-                c.hypothesis = first.hypothesis.clone();
-                let reweighed = refine(&modes, sensors, &base2, &scorer2, &c)?;
-                if reweighed.amplitude() == Some(0.0) {
-                    // Beside the second finding the first explains nothing: it is dropped.
-                    families.push(FamilyScore {
-                        round: MAX_FINDINGS - 1,
-                        kind: format!("{}{REJECTED_NO_SIZE}", reweighed.kind()),
-                        bic_gain: first.finding.bic_gain.unwrap_or(f64::NAN),
-                    });
-                    view = base2;
-                    ev = ev2;
-                    kept.remove(0);
-                } else {
-                    let mut finding = Finding::of(&reweighed, &[], model);
-                    let old = &kept[0].finding;
-                    finding.images = old.images.clone();
-                    finding.confidence = old.confidence;
-                    finding.bic_gain = old.bic_gain;
-                    finding.runner_up = old.runner_up.clone();
-                    let updated = second.hypothesis.apply(&reweighed.apply(model));
-                    view = ModelView::new(&updated, base.fmax_hz)?;
-                    ev = Evidence::gather(&modes, view.poles_at(sensors)?);
-                    kept[0].finding = finding;
-                    kept[0].hypothesis = reweighed;
-                }
+        let first_found = FirstFinding {
+            hypothesis: &first.hypothesis,
+            candidate: &first.candidate,
+            scorer: &first.scorer,
+        };
+        let beside = reweigh_first(
+            &modes,
+            sensors,
+            (&base, model, &evidence),
+            &first_found,
+            &second.hypothesis,
+            settings.model_form_sigma,
+        )?;
+        if let Some((reweighed, base2)) = beside {
+            if reweighed.amplitude() == Some(0.0) {
+                // Beside the second finding the first explains nothing: it is dropped.
+                families.push(FamilyScore {
+                    round: MAX_FINDINGS - 1,
+                    kind: format!("{}{REJECTED_NO_SIZE}", reweighed.kind()),
+                    bic_gain: first.finding.bic_gain.unwrap_or(f64::NAN),
+                });
+                ev = Evidence::gather(&modes, base2.poles_at(sensors)?);
+                view = base2;
+                kept.remove(0);
+            } else {
+                let updated = second.hypothesis.apply(&reweighed.apply(model));
+                view = ModelView::new(&updated, base.fmax_hz)?;
+                ev = Evidence::gather(&modes, view.poles_at(sensors)?);
+                kept[0].resize(reweighed, model);
             }
         }
     }
