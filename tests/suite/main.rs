@@ -24,6 +24,7 @@ mod diagnose_damping_law;
 mod diagnose_elastic_edge;
 mod diagnose_evidence;
 mod diagnose_kirchhoff;
+mod diagnose_kirchhoff_two_effects;
 mod diagnose_kirchhoff_viscoelastic;
 mod diagnose_mass;
 mod diagnose_mirror;

@@ -1,0 +1,59 @@
+//! The mass and the g = 50 % patch of `diagnose_two_effects` recorded by another simulator
+//! (Kirchhoff thin plate, `scripts/kirchhoff_sim.py`), diagnosed against the 32 × 48 × 2 FE
+//! model to the default 160 Hz: the patch is found first, and the mass beside it.
+//!
+//! Found 2026-11-28: the mass was rejected ("not borne out once re-solved", −20.9 in BIC
+//! through the re-solved model against +18.7 from its scan). With the patch in the model, each
+//! mode's damping was weighed by the identification's σ alone (down to 8e-5), and the small
+//! damping changes by which the mass reshapes the patch's modes cost about 40 — although the
+//! patch's own extra damping (up to 0.025 per mode) carries the 5 % model form of two plate
+//! theories. The damping's model-form part now comes from the recordings against the model
+//! before any finding ([`Scorer::with_damping_form_of`]).
+//!
+//! [`Scorer::with_damping_form_of`]: dampscope::diagnose::score::Scorer::with_damping_form_of
+
+use crate::common;
+
+use dampscope::diagnose::procedure::DEFAULT_DIAGNOSE_FMAX_HZ;
+
+/// Measured (noise 50 dB on mean power, seed 1): see the test data's README for the truth
+/// (2 kg at (0.941, 1.196) m; the patch x 1.125–1.625, y 1.875–2.5 m, loss factor 0.5).
+#[test]
+fn a_mass_beside_a_damped_patch_from_another_simulator_is_found() {
+    let d = common::diagnose_set(
+        "tests/data/diagnose/plate-48x72-kirchhoff-mass-and-patch",
+        50.0,
+        1,
+        DEFAULT_DIAGNOSE_FMAX_HZ,
+    );
+    let kinds: Vec<&str> = common::physics(&d)
+        .iter()
+        .map(|f| f.kind.as_str())
+        .collect();
+    assert_eq!(kinds.len(), 2, "{:?}", d.findings);
+    let loss = d
+        .findings
+        .iter()
+        .find(|f| f.kind == "localized_damping")
+        .unwrap_or_else(|| panic!("no patch: {:?}", d.findings));
+    assert!(
+        common::region_offset_m(loss, 1.375, 2.1875) < 0.3,
+        "{loss:?}"
+    );
+    let mass = d
+        .findings
+        .iter()
+        .find(|f| f.kind == "added_mass")
+        .unwrap_or_else(|| panic!("no mass: {:?}", d.findings));
+    let p = mass.point.as_ref().unwrap();
+    assert!((p.x - 0.941).hypot(p.y - 1.196) < 0.15, "{mass:?}");
+    assert!(
+        (mass.parameters["mass_kg"] / 2.0 - 1.0).abs() < 0.25,
+        "{mass:?}"
+    );
+    assert!(
+        d.fit.after.frequency_rms_hz < d.fit.before.frequency_rms_hz,
+        "{:?}",
+        d.fit
+    );
+}
