@@ -347,7 +347,12 @@ pub fn diagnose_with_progress(
             families.push(FamilyScore {
                 round,
                 kind: format!("{}{why}", refined.kind()),
-                bic_gain: none - best.bic,
+                // Not borne out: the gain that rejected it, not its scan's.
+                bic_gain: if why == REJECTED_NOT_BORNE_OUT {
+                    solved_gain
+                } else {
+                    none - best.bic
+                },
             });
             break;
         }

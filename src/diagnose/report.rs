@@ -449,7 +449,8 @@ pub const REJECTED_FITS_WORSE: &str = " (rejected: fits worse)";
 pub const REJECTED_NO_SIZE: &str = " (rejected: no size left)";
 
 /// What a [`FamilyScore`]'s kind ends with when the round's best candidate, through the
-/// re-solved model, no longer beats "no change" by [`super::procedure::MIN_BIC_GAIN`].
+/// re-solved model, no longer beats "no change" by [`super::procedure::MIN_BIC_GAIN`]; the
+/// row's gain is then the re-solved one.
 pub const REJECTED_NOT_BORNE_OUT: &str = " (rejected: not borne out once re-solved)";
 
 /// Why a local damping map alone would not show a finding of this kind.

@@ -11,7 +11,7 @@
 
 use std::path::{Path, PathBuf};
 
-use dampscope::diagnose::procedure::{diagnose, DiagnoseSettings};
+use dampscope::diagnose::procedure::{diagnose, DiagnoseSettings, MIN_BIC_GAIN};
 use dampscope::diagnose::report::Diagnosis;
 use dampscope::sim::model::Model;
 
@@ -348,10 +348,19 @@ fn a_finding_the_re_solved_model_does_not_bear_out_is_rejected() {
     assert!(offset_on_small_plate_m(place, (tx, ty)) < 0.1, "{place:?}");
     assert!(common::rel_err(m, tm) < 0.25, "{m} kg");
     let report = std::fs::read_to_string(dir.join("out").join("report.md")).unwrap();
-    assert!(
-        report.contains("(rejected: not borne out once re-solved)"),
-        "{report}"
-    );
+    // Its row gives the gain through the re-solved model: below the bar that rejected it.
+    let row = report
+        .lines()
+        .find(|l| l.contains("(rejected: not borne out once re-solved)"))
+        .unwrap_or_else(|| panic!("no rejected row: {report}"));
+    let gain: f64 = row
+        .trim_end_matches(" |")
+        .rsplit("| ")
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(gain < MIN_BIC_GAIN, "{row}");
     let _ = std::fs::remove_dir_all(&dir);
 }
 
