@@ -127,6 +127,24 @@ pub fn diagnose(
     diagnose_with_progress(rec, sensors, model, settings, &mut |_| {})
 }
 
+/// `model` with every patch's own loss factor taken back to the plate's (`None`: no patch has
+/// one). A loss change only: the undamped modes stay. Viscoelastic patches are left as they are
+/// (their storage modulus depends on frequency: removing them would change the modes).
+fn without_patch_losses(model: &Model) -> Option<Model> {
+    let lossy = |p: &crate::sim::model::Patch| {
+        p.sls.is_none()
+            && p.loss_factor
+                .is_some_and(|g| g != model.material.loss_factor)
+    };
+    model.patches.iter().any(lossy).then(|| {
+        let mut plain = model.clone();
+        for p in plain.patches.iter_mut().filter(|p| lossy(p)) {
+            p.loss_factor = None;
+        }
+        plain
+    })
+}
+
 /// One kept finding: the refined change, the candidate it came from (its prediction is the
 /// sensitivity), and the scorer of its round.
 struct Kept {
@@ -192,6 +210,12 @@ pub fn diagnose_with_progress(
             got: evidence.pairs.len(),
         });
     }
+    // The damping's model form is that of all the damping regions predict, also of those the
+    // model has already (see `with_damping_form_of`).
+    let form_reference = match without_patch_losses(model) {
+        Some(plain) => Evidence::gather(&modes, base.with_loss_change(&plain)?.poles_at(sensors)?),
+        None => evidence.clone(),
+    };
     let mut families = Vec::new();
     let mut kept: Vec<Kept> = Vec::new();
     let mut edges = boundary::EdgeCache::default();
@@ -199,7 +223,7 @@ pub fn diagnose_with_progress(
     for round in 0..MAX_FINDINGS {
         let patterns = model_form_patterns(&view, sensors, &ev, settings.model_form_sigma)?;
         let Some(scorer) = Scorer::new(&modes, &ev, &view, &patterns, settings.model_form_sigma)
-            .map(|s| s.with_damping_form_of(&evidence))
+            .map(|s| s.with_damping_form_of(&form_reference))
         else {
             break;
         };
@@ -376,7 +400,7 @@ pub fn diagnose_with_progress(
         let beside = reweigh_first(
             &modes,
             sensors,
-            (&base, model, &evidence),
+            (&base, model, &form_reference),
             &first_found,
             &second.hypothesis,
             settings.model_form_sigma,

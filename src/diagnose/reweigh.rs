@@ -29,7 +29,8 @@ pub struct FirstFinding<'a> {
 
 /// `first`'s size refitted against `model` (the model without any finding) with `second`
 /// applied; also that model's view. `base` is the view of `model`, `original` the recordings'
-/// evidence against it (for the damping's model form, [`Scorer::with_damping_form_of`]).
+/// evidence against it without its patches' own losses (for the damping's model form,
+/// [`Scorer::with_damping_form_of`]).
 /// `None` when `first` has no size to refit or too few pairs remain to score; a size of 0
 /// means the first finding explains nothing beside the second.
 pub fn reweigh_first(

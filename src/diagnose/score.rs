@@ -174,10 +174,12 @@ impl Scorer {
     }
 
     /// This scorer with the damping's model-form part taken from `original` (the recordings
-    /// against the model before any finding) where that is larger: once a lossy finding is in
-    /// the model, the extra damping it predicts per mode carries the same relative model-form
-    /// error ([`DAMPING_FORM_REL`]) as when it was missing, although the difference left is
-    /// small. Found on Kirchhoff recordings of a mass beside a g = 50 % patch: with the patch
+    /// against the model before any finding, its own lossy patches taken back to the plate's
+    /// loss) where that is larger: once a lossy region is in the model, found or given, the
+    /// extra damping it predicts per mode carries the same relative model-form error
+    /// ([`DAMPING_FORM_REL`]) as when it was missing, although the difference left is small.
+    /// Found also with a model that had the patch already: the difference left was taken for
+    /// an elastic edge (test `diagnose_kirchhoff_two_effects`). Found on Kirchhoff recordings of a mass beside a g = 50 % patch: with the patch
     /// in the model the identification's σ_D alone (down to 8e-5) made the small damping
     /// changes by which the mass reshapes the patch's modes cost 40 in BIC, and the mass was
     /// rejected.
