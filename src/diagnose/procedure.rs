@@ -405,7 +405,7 @@ pub fn diagnose_with_progress(
             &second.hypothesis,
             settings.model_form_sigma,
         )?;
-        if let Some((reweighed, base2)) = beside {
+        if let Some((reweighed, base2, ev2)) = beside {
             if reweighed.amplitude() == Some(0.0) {
                 // Beside the second finding the first explains nothing: it is dropped.
                 families.push(FamilyScore {
@@ -413,7 +413,7 @@ pub fn diagnose_with_progress(
                     kind: format!("{}{REJECTED_NO_SIZE}", reweighed.kind()),
                     bic_gain: first.finding.bic_gain.unwrap_or(f64::NAN),
                 });
-                ev = Evidence::gather(&modes, base2.poles_at(sensors)?);
+                ev = ev2;
                 view = base2;
                 kept.remove(0);
             } else {

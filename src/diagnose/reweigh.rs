@@ -28,7 +28,7 @@ pub struct FirstFinding<'a> {
 }
 
 /// `first`'s size refitted against `model` (the model without any finding) with `second`
-/// applied; also that model's view. `base` is the view of `model`, `original` the recordings'
+/// applied; also that model's view and the recordings' evidence against it. `base` is the view of `model`, `original` the recordings'
 /// evidence against it without its patches' own losses (for the damping's model form,
 /// [`Scorer::with_damping_form_of`]).
 /// `None` when `first` has no size to refit or too few pairs remain to score; a size of 0
@@ -40,7 +40,7 @@ pub fn reweigh_first(
     first: &FirstFinding<'_>,
     second: &Hypothesis,
     model_form_sigma: f64,
-) -> Result<Option<(Hypothesis, ModelView)>, SimError> {
+) -> Result<Option<(Hypothesis, ModelView, Evidence)>, SimError> {
     let Some(amp) = first.hypothesis.amplitude() else {
         return Ok(None);
     };
@@ -59,5 +59,5 @@ pub fn reweigh_first(
     c.prediction = c.prediction.realigned(first.scorer, &scorer2, scale);
     c.hypothesis = first.hypothesis.clone();
     let reweighed = refine(modes, sensors, &base2, &scorer2, &c)?;
-    Ok(Some((reweighed, base2)))
+    Ok(Some((reweighed, base2, ev2)))
 }

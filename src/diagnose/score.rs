@@ -178,11 +178,11 @@ impl Scorer {
     /// loss) where that is larger: once a lossy region is in the model, found or given, the
     /// extra damping it predicts per mode carries the same relative model-form error
     /// ([`DAMPING_FORM_REL`]) as when it was missing, although the difference left is small.
-    /// Found also with a model that had the patch already: the difference left was taken for
-    /// an elastic edge (test `diagnose_kirchhoff_two_effects`). Found on Kirchhoff recordings of a mass beside a g = 50 % patch: with the patch
-    /// in the model the identification's σ_D alone (down to 8e-5) made the small damping
-    /// changes by which the mass reshapes the patch's modes cost 40 in BIC, and the mass was
-    /// rejected.
+    /// Found on Kirchhoff recordings of a mass beside a g = 50 % patch: with the patch in the
+    /// model the identification's σ_D alone (down to 8e-5) made the small damping changes by
+    /// which the mass reshapes the patch's modes cost 40 in BIC, and the mass was rejected;
+    /// with a model that had the patch already, the difference left was taken for an elastic
+    /// edge (tests `diagnose_kirchhoff_two_effects`).
     pub fn with_damping_form_of(mut self, original: &Evidence) -> Self {
         for (k, p) in self.pairs.iter().enumerate() {
             let before = original
@@ -190,12 +190,7 @@ impl Scorer {
                 .iter()
                 .find(|q| q.measured == p.measured)
                 .map_or(0.0, |q| q.damping_diff);
-            let larger = if before.abs() > p.damping_diff.abs() {
-                before
-            } else {
-                p.damping_diff
-            };
-            self.damping_weight[k] = damping_weight(p, larger);
+            self.damping_weight[k] = damping_weight(p, before.abs().max(p.damping_diff.abs()));
         }
         self
     }
