@@ -8,7 +8,8 @@
 //!   patterns are correlated with the measured ones; the best correlation wins;
 //! - a mass or a stiffness change bends the real shapes towards or away from itself: each image
 //!   is applied, the model solved again, and the image whose shapes pair best with the measured
-//!   ones (least Σ(1 − MAC), an unpaired mode counting 1) wins.
+//!   ones (least Σ(1 − MAC), an unpaired mode counting 1) wins; model modes the change mixes
+//!   strongly ([`MIXING_SPACING_PER_SHIFT`]) are scored as one subspace.
 //!
 //! The winner is settled when it beats the runner-up by a margin; otherwise the images stay in
 //! the finding.
@@ -18,9 +19,9 @@ use faer::c64;
 use super::evidence::{Evidence, ModelPole, ModelView};
 use super::hypothesis::Hypothesis;
 use super::refine::view_of;
-use super::score::Candidate;
+use super::score::{Candidate, Prediction};
 use super::workers::parallel_map;
-use crate::modal::model_shapes::shape_at;
+use crate::modal::model_shapes::{shape_at, subspace_mac};
 use crate::modal::Mode;
 use crate::sim::assembly::{assemble, sensors_at};
 use crate::sim::eigen::{lowest_modes, ModeRequest};
@@ -34,6 +35,18 @@ pub const MIN_QUADRATURE_MARGIN: f64 = 0.2;
 /// A mass's or stiffness change's image is ruled out when the runner-up's shape misfit
 /// Σ(1 − MAC) exceeds the best one's by this much.
 pub const MIN_SHAPE_MISFIT_MARGIN: f64 = 0.02;
+/// Model modes closer than this many times the finding's largest relative frequency shift are
+/// scored as one subspace when the shapes choose a mass's or stiffness change's image. A change
+/// that moves a mode by δ couples it to a neighbour by up to about δ (a point mass's coupling
+/// is the geometric mean of the two modes' shifts), and at a spacing of 2δ the two are mixed by
+/// 22.5° or more (tan 2θ = 2δ / spacing). How they mix hangs on the change's exact size and
+/// place and on the plate theory, where the shapes' choice must not: on Kirchhoff recordings
+/// of a 2.63 kg mass (largest shift 1.2 %), one mode of a pair 2.4 % apart (MAC 0.62 at the
+/// true place, 0.88 at the mirror image) outweighed all the others and chose the mirror image.
+pub const MIXING_SPACING_PER_SHIFT: f64 = 2.0;
+/// Two changes of one kind are the same size (mirror images of each other) within this
+/// relative difference of every parameter (the scan's images fit alike to 1e-3).
+const SAME_SIZE_REL: f64 = 1e-3;
 /// Most sizes of a lossy region handed on for the re-solved damping to choose among (the
 /// shapes' favourites): the true one was among the shapes' first two on every set tried
 /// (Kirchhoff and FE recordings of a damped patch and of a viscoelastic layer).
@@ -97,14 +110,25 @@ pub(crate) fn quadrature_match(
     Ok(if den > 0.0 { num / den } else { 0.0 })
 }
 
-/// Σ(1 − MAC) of the measured modes against `view`'s model re-solved (undamped shapes), an
-/// unpaired measured mode counting 1.
+/// How well a place's re-solved shapes pair with the measured ones (lower is better); for a loss
+/// both fields hold minus its quadrature correlation.
+#[derive(Clone, Copy, Debug)]
+struct ShapeMisfit {
+    /// Σ(1 − MAC), each measured mode against its partner alone, an unpaired one counting 1.
+    modes_alone: f64,
+    /// The same with each measured mode's MAC taken with the span of its partner and the model
+    /// modes within the mixing window of the partner's frequency ([`subspace_mac`]).
+    mixed_as_one: f64,
+}
+
+/// The measured modes against `model` re-solved to `fmax_hz` (undamped shapes), with the
+/// mixing window `mixing_window_rel` ([`ShapeMisfit`]).
 fn shape_misfit(
     measured: &[Mode],
     model: &crate::sim::model::Model,
-    fmax_hz: f64,
     sensors: &[SensorPosition],
-) -> Result<f64, SimError> {
+    (fmax_hz, mixing_window_rel): (f64, f64),
+) -> Result<ShapeMisfit, SimError> {
     let system = assemble(model)?;
     let modes = lowest_modes(&system, ModeRequest::BelowHz(fmax_hz))?;
     let at = sensors_at(model, sensors)?;
@@ -118,7 +142,111 @@ fn shape_misfit(
         })
         .collect();
     let e = Evidence::gather(measured, poles);
-    Ok(e.pairs.iter().map(|p| 1.0 - p.mac).sum::<f64>() + (measured.len() - e.pairs.len()) as f64)
+    let unpaired = (measured.len() - e.pairs.len()) as f64;
+    let mixed: f64 = e
+        .pairs
+        .iter()
+        .map(|p| {
+            let partner = &e.model[p.model];
+            let near = |q: &ModelPole| {
+                (q.frequency_hz / partner.frequency_hz - 1.0).abs() <= mixing_window_rel
+            };
+            let span: Vec<&[f64]> = std::iter::once(partner)
+                .chain(
+                    e.model
+                        .iter()
+                        .enumerate()
+                        .filter(|&(k, q)| k != p.model && near(q))
+                        .map(|(_, q)| q),
+                )
+                .map(|q| &q.shape[..])
+                .collect();
+            1.0 - subspace_mac(&measured[p.measured].shape, &span)
+        })
+        .sum();
+    Ok(ShapeMisfit {
+        modes_alone: e.pairs.iter().map(|p| 1.0 - p.mac).sum::<f64>() + unpaired,
+        mixed_as_one: mixed + unpaired,
+    })
+}
+
+/// Whether `a` and `b` are one change at two places (the same kind and size: the scan's
+/// mirror images), not a rival of another size.
+fn same_change(a: &Hypothesis, b: &Hypothesis) -> bool {
+    let same = |x: f64, y: f64| (x - y).abs() <= SAME_SIZE_REL * x.abs().max(y.abs());
+    let dims = |r: &super::regions::Region| (r.x[1] - r.x[0], r.y[1] - r.y[0]);
+    match (a, b) {
+        (Hypothesis::AddedMass { mass_kg: p, .. }, Hypothesis::AddedMass { mass_kg: q, .. }) => {
+            same(*p, *q)
+        }
+        (
+            Hypothesis::StiffnessChange {
+                region: r,
+                youngs_factor: p,
+            },
+            Hypothesis::StiffnessChange {
+                region: s,
+                youngs_factor: q,
+            },
+        ) => {
+            let ((w, h), (v, g)) = (dims(r), dims(s));
+            same(*p, *q) && same(w, v) && same(h, g)
+        }
+        (
+            Hypothesis::BoundaryCompliance {
+                stiffness_per_length: p,
+                was_pinned: i,
+                ..
+            },
+            Hypothesis::BoundaryCompliance {
+                stiffness_per_length: q,
+                was_pinned: j,
+                ..
+            },
+        ) => i == j && same(*p, *q),
+        _ => false,
+    }
+}
+
+/// The winner among `all` by their `measures`, how far each falls behind it, and each one's
+/// score (higher is better). A loss: the best quadrature correlation (no two losses count as
+/// one change here). A mass or stiffness
+/// change: the change with the least misfit, modes alone, against the others (rivals of
+/// another size, whose couplings differ in strength, which the shapes show whatever the
+/// model form); then, among that change's mirror images, the least misfit with strongly
+/// mixed modes as one ([`MIXING_SPACING_PER_SHIFT`]).
+fn choose(all: &[Hypothesis], measures: &[ShapeMisfit]) -> (usize, Vec<f64>, Vec<f64>) {
+    let n = all.len();
+    let least = |keep: &dyn Fn(usize) -> bool, by: &dyn Fn(usize) -> f64| {
+        (0..n)
+            .filter(|&k| keep(k))
+            .min_by(|&a, &b| by(a).total_cmp(&by(b)))
+            .expect("the kept are not empty")
+    };
+    let alone = |k: usize| measures[k].modes_alone;
+    let mixed = |k: usize| measures[k].mixed_as_one;
+    let change = least(&|_| true, &alone);
+    let imaged = |k: usize| k == change || same_change(&all[k], &all[change]);
+    let top = least(&imaged, &|k| mixed(k) + 1e-9 * alone(k));
+    let misfit = |k: usize| if imaged(k) { mixed(k) } else { alone(k) };
+    let deficit = (0..n)
+        .map(|k| {
+            if imaged(k) {
+                mixed(k) - mixed(top)
+            } else {
+                alone(k) - alone(change)
+            }
+        })
+        .collect();
+    (top, deficit, (0..n).map(|k| -misfit(k)).collect())
+}
+
+/// The largest change of ln f that `prediction` makes on any pair.
+fn largest_shift(prediction: &Prediction) -> f64 {
+    prediction
+        .log_frequency
+        .iter()
+        .fold(0.0, |m: f64, a| m.max(a.abs()))
 }
 
 /// The outcome of [`resolve_images`].
@@ -182,7 +310,8 @@ pub fn resolve_images(
             settled: true,
         });
     }
-    let mut scores = parallel_map(all.iter().collect(), |h: &Hypothesis| {
+    let mixing_window_rel = MIXING_SPACING_PER_SHIFT * largest_shift(&candidate.prediction);
+    let measures = parallel_map(all.iter().collect(), |h: &Hypothesis| {
         // A loss is placed by its loss alone: a viscoelastic layer's mass would make every
         // candidate a full re-solve (16 of them: 40 s of a 58 s diagnosis), and where the
         // quadrature parts point does not depend on it.
@@ -193,14 +322,18 @@ pub fn resolve_images(
         let h = &placing;
         let model = h.apply(&base.model);
         if loss {
-            quadrature_match(measured, evidence, &view_of(base, &model, h)?, sensors)
+            let q = quadrature_match(measured, evidence, &view_of(base, &model, h)?, sensors)?;
+            Ok(ShapeMisfit {
+                modes_alone: -q,
+                mixed_as_one: -q,
+            })
         } else {
-            Ok(-shape_misfit(measured, &model, base.fmax_hz, sensors)?)
+            let m = (base.fmax_hz, mixing_window_rel);
+            shape_misfit(measured, &model, sensors, m)
         }
     })?;
-    let top = (0..all.len())
-        .max_by(|&a, &b| scores[a].total_cmp(&scores[b]))
-        .expect("candidates are not empty");
+    // Higher is better in `scores`; `deficit` is how far each falls behind the winner.
+    let (top, deficit, mut scores) = choose(&all, &measures);
     let margin = if loss {
         MIN_QUADRATURE_MARGIN
     } else {
@@ -215,7 +348,7 @@ pub fn resolve_images(
         (Some(a), Some(b)) => a.containment(&b) >= 0.5,
         _ => k == top,
     };
-    let within = |k: usize| scores[top] - scores[k] < margin;
+    let within = |k: usize| deficit[k] < margin;
     let sizes: Vec<usize> = (0..all.len())
         .filter(|&k| same_place(k) && within(k))
         .collect();

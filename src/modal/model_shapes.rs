@@ -118,6 +118,41 @@ pub fn mac_complex_real(identified: &[c64], model: &[f64]) -> f64 {
     }
 }
 
+/// The MAC of a complex identified shape with the span of several real model shapes: the
+/// share of |φ|² that the span holds, |Qᵀφ|² / |φ|² with Q an orthonormal basis of the span
+/// (Gram–Schmidt). With one shape it is [`mac_complex_real`]; with modes so close that their
+/// mixing is not to be trusted it scores the pair as a whole (shapes that are linearly
+/// dependent on the earlier ones add nothing).
+pub fn subspace_mac(identified: &[c64], span: &[&[f64]]) -> f64 {
+    let total: f64 = identified.iter().map(|a| a.norm_sqr()).sum();
+    if total <= 0.0 {
+        return 0.0;
+    }
+    let mut basis: Vec<Vec<f64>> = Vec::with_capacity(span.len());
+    let mut held = 0.0;
+    for shape in span {
+        let mut q: Vec<f64> = shape.to_vec();
+        let scale = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+        for b in &basis {
+            let d: f64 = q.iter().zip(b).map(|(x, y)| x * y).sum();
+            q.iter_mut().zip(b).for_each(|(x, y)| *x -= d * y);
+        }
+        let norm = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+        // A shape (nearly) in the span of the earlier ones adds no direction (NaN neither).
+        if norm.is_nan() || norm <= 1e-9 * scale {
+            continue;
+        }
+        q.iter_mut().for_each(|x| *x /= norm);
+        let dot = identified
+            .iter()
+            .zip(&q)
+            .fold(c64::new(0.0, 0.0), |acc, (a, &b)| acc + a.conj() * b);
+        held += dot.norm_sqr();
+        basis.push(q);
+    }
+    (held / total).min(1.0)
+}
+
 /// Each identified mode's model partner: the model mode of highest MAC (`None` when the mode
 /// has no shape or the model no modes).
 pub fn match_model(modes: &[Mode], model: &[ModelMode]) -> Vec<Option<ModelMatch>> {
@@ -177,5 +212,59 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(minus.contains("negate the channel"), "{minus}");
+    }
+
+    /// The slow oracle: the least-squares projection of φ on the span, solved by the normal
+    /// equations of the (linearly independent) shapes.
+    fn projected_share(phi: &[c64], span: &[&[f64]]) -> f64 {
+        let n = span.len();
+        let gram = nalgebra::DMatrix::from_fn(n, n, |i, j| {
+            span[i].iter().zip(span[j]).map(|(a, b)| a * b).sum::<f64>()
+        });
+        let inverse = gram.try_inverse().unwrap();
+        let parts: [fn(&c64) -> f64; 2] = [|z| z.re, |z| z.im];
+        let mut held = 0.0;
+        for part in parts {
+            let rhs = nalgebra::DVector::from_fn(n, |i, _| {
+                span[i]
+                    .iter()
+                    .zip(phi)
+                    .map(|(a, z)| a * part(z))
+                    .sum::<f64>()
+            });
+            held += rhs.dot(&(&inverse * &rhs));
+        }
+        held / phi.iter().map(|z| z.norm_sqr()).sum::<f64>()
+    }
+
+    #[test]
+    fn the_subspace_mac_is_the_share_of_the_shape_in_the_span() {
+        let a = [1.0, 0.5, -0.3, 0.2, 0.0];
+        let b = [0.1, -0.8, 0.4, 0.9, 0.3];
+        let c = [0.7, 0.2, 0.1, -0.5, 1.0];
+        let phi: Vec<c64> = (0..5)
+            .map(|i| {
+                c64::new(
+                    0.6 * a[i] - 0.9 * b[i] + 0.05 * c[i],
+                    0.1 * c[i] - 0.2 * a[i],
+                )
+            })
+            .collect();
+        // One shape: the ordinary MAC.
+        let one = subspace_mac(&phi, &[&a]);
+        assert!((one - mac_complex_real(&phi, &a)).abs() < 1e-12, "{one}");
+        // Two and three shapes: the share the projection holds, as the normal equations give it.
+        for span in [vec![&a[..], &b[..]], vec![&a[..], &b[..], &c[..]]] {
+            let (fast, slow) = (subspace_mac(&phi, &span), projected_share(&phi, &span));
+            assert!((fast - slow).abs() < 1e-12, "{fast} against {slow}");
+        }
+        // The two shapes φ's real part is made of hold it nearly whole, each alone far less.
+        let both = subspace_mac(&phi, &[&a, &b]);
+        assert!(both > 0.95 && mac_complex_real(&phi, &a) < 0.5, "{both}");
+        // A shape in the span of the earlier ones adds nothing.
+        let dependent: Vec<f64> = a.iter().zip(&b).map(|(x, y)| 2.0 * x - y).collect();
+        let with = subspace_mac(&phi, &[&a, &b, &dependent]);
+        assert!((with - both).abs() < 1e-12, "{with} against {both}");
+        assert_eq!(subspace_mac(&[c64::new(0.0, 0.0); 5], &[&a]), 0.0);
     }
 }
