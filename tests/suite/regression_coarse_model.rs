@@ -15,7 +15,7 @@ use dampscope::diagnose::procedure::{diagnose, DiagnoseSettings, MIN_BIC_GAIN};
 use dampscope::diagnose::report::Diagnosis;
 use dampscope::sim::model::Model;
 
-use crate::common::{self, fresh_dir, TestCommand};
+use crate::common::{self, fresh_dir, ScratchDir, TestCommand};
 
 /// The plate; `{plate}`, `{mesh}` and `{sensors}` are filled in, a point mass may be appended.
 const PLATE: &str = r#"
@@ -84,7 +84,7 @@ fn truth_and_model(
     dims: (f64, f64, f64),
     (mesh, coarse): ((usize, usize), (usize, usize)),
     extra: &str,
-) -> (PathBuf, PathBuf, PathBuf) {
+) -> (ScratchDir, PathBuf, PathBuf) {
     let dir = fresh_dir(name);
     let sensors = sensor_file(&dir, (dims.0, dims.1));
     let file = format!("sensors = {{ file = \"{}\" }}", sensors.display());
@@ -97,7 +97,7 @@ fn truth_and_model(
 
 /// Recordings of the small plate on 36 × 54 with `extra` (noise-free; noise is added per seed),
 /// and the 12 × 18 model without it.
-fn recordings(name: &str, extra: &str) -> (PathBuf, Model, PathBuf) {
+fn recordings(name: &str, extra: &str) -> (PathBuf, Model, ScratchDir) {
     let (dir, truth, model) = truth_and_model(name, SMALL, ((36, 54), (12, 18)), extra);
     let set = dir.join("set");
     common::simulate_set(&truth, &set, &[]);
@@ -132,7 +132,7 @@ fn diagnose_noisy(
     extra: &str,
     seed: u64,
     fmax_hz: &str,
-) -> (PathBuf, String, serde_json::Value) {
+) -> (ScratchDir, String, serde_json::Value) {
     let (dir, truth, model) = truth_and_model(name, dims, meshes, extra);
     let (set, out) = (dir.join("set"), dir.join("out"));
     let seed = seed.to_string();
@@ -170,7 +170,7 @@ fn diagnose_small_with_mass(
     name: &str,
     truth: (f64, f64, f64),
     seed: u64,
-) -> (PathBuf, String, serde_json::Value) {
+) -> (ScratchDir, String, serde_json::Value) {
     let meshes = ((36, 54), (12, 18));
     diagnose_noisy(name, SMALL, meshes, &point_mass_toml(truth), seed, "400")
 }

@@ -5,8 +5,7 @@ use dampscope::sim::model::Model;
 
 #[test]
 fn modes_cli_writes_csv_of_the_lowest_modes() {
-    let dir = std::env::temp_dir().join(format!("dampscope-modes-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::fresh_dir("modes");
     let model = dir.join("coarse.toml");
     let text = dampscope::sim::model::REFERENCE_PLATE_TOML
         .replace("nx = 32", "nx = 8")
@@ -36,8 +35,7 @@ fn modes_cli_writes_csv_of_the_lowest_modes() {
 /// mode and all lie between the plate's and the patch's.
 #[test]
 fn modes_cli_damping_gives_each_pole() {
-    let dir = std::env::temp_dir().join(format!("dampscope-poles-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::fresh_dir("poles");
     let coarse = dampscope::sim::model::REFERENCE_PLATE_TOML
         .replace("nx = 32", "nx = 8")
         .replace("ny = 48", "ny = 12");

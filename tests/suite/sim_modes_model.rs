@@ -69,8 +69,7 @@ fn impossible_values_name_their_key() {
 
 #[test]
 fn sensor_outside_the_plate_in_a_file_is_an_error() {
-    let dir = std::env::temp_dir().join(format!("dampscope-sensors-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = crate::common::fresh_dir("sensors");
     std::fs::write(dir.join("sensors.csv"), "id,x,y\nA,0.5,0.5\nB,2.5,1.0\n").unwrap();
     let text = REFERENCE_PLATE_TOML.replace(
         "sensors = { nx = 33, ny = 49 }",
