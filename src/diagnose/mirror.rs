@@ -36,13 +36,14 @@ pub const MIN_QUADRATURE_MARGIN: f64 = 0.2;
 /// Σ(1 − MAC) exceeds the best one's by this much.
 pub const MIN_SHAPE_MISFIT_MARGIN: f64 = 0.02;
 /// Model modes closer than this many times the finding's largest relative frequency shift are
-/// scored as one subspace when the shapes choose a mass's or stiffness change's image. A change
-/// that moves a mode by δ couples it to a neighbour by up to about δ (a point mass's coupling
-/// is the geometric mean of the two modes' shifts), and at a spacing of 2δ the two are mixed by
-/// 22.5° or more (tan 2θ = 2δ / spacing). How they mix hangs on the change's exact size and
-/// place and on the plate theory, where the shapes' choice must not: on Kirchhoff recordings
-/// of a 2.63 kg mass (largest shift 1.2 %), one mode of a pair 2.4 % apart (MAC 0.62 at the
-/// true place, 0.88 at the mirror image) outweighed all the others and chose the mirror image.
+/// scored as one subspace when the shapes choose among a mass's or stiffness change's mirror
+/// images. A change that moves a mode by δ couples it to a neighbour by up to about δ (a point
+/// mass's coupling is the geometric mean of the two modes' shifts), and at a spacing of 2δ the
+/// two are mixed by 22.5° or more (tan 2θ = 2δ / spacing). Mirror images differ in the sign of
+/// that coupling, which the pair's order or spacing in another plate theory flips as well, so
+/// the shapes' choice must not hang on it: on Kirchhoff recordings of a 2.63 kg mass (largest
+/// shift 1.2 %), one mode of a pair 2.4 % apart (MAC 0.62 at the true place, 0.88 at the mirror
+/// image) outweighed all the others and chose the mirror image.
 pub const MIXING_SPACING_PER_SHIFT: f64 = 2.0;
 /// Two changes of one kind are the same size (mirror images of each other) within this
 /// relative difference of every parameter (the scan's images fit alike to 1e-3).
@@ -209,12 +210,12 @@ fn same_change(a: &Hypothesis, b: &Hypothesis) -> bool {
 }
 
 /// The winner among `all` by their `measures`, how far each falls behind it, and each one's
-/// score (higher is better). A loss: the best quadrature correlation (no two losses count as
-/// one change here). A mass or stiffness
-/// change: the change with the least misfit, modes alone, against the others (rivals of
-/// another size, whose couplings differ in strength, which the shapes show whatever the
-/// model form); then, among that change's mirror images, the least misfit with strongly
-/// mixed modes as one ([`MIXING_SPACING_PER_SHIFT`]).
+/// score (higher is better).
+/// - A loss: the best quadrature correlation (no two losses count as one change here).
+/// - A mass or stiffness change: first the change with the least misfit, modes alone, against
+///   rivals of another size (their couplings differ in strength, which the shapes show whatever
+///   the model form); then, among that change's mirror images, the least misfit with strongly
+///   mixed modes as one ([`MIXING_SPACING_PER_SHIFT`]).
 fn choose(all: &[Hypothesis], measures: &[ShapeMisfit]) -> (usize, Vec<f64>, Vec<f64>) {
     let n = all.len();
     let least = |keep: &dyn Fn(usize) -> bool, by: &dyn Fn(usize) -> f64| {
@@ -227,6 +228,7 @@ fn choose(all: &[Hypothesis], measures: &[ShapeMisfit]) -> (usize, Vec<f64>, Vec
     let mixed = |k: usize| measures[k].mixed_as_one;
     let change = least(&|_| true, &alone);
     let imaged = |k: usize| k == change || same_change(&all[k], &all[change]);
+    // Exact ties (the images of a symmetric set) go to the better misfit modes alone.
     let top = least(&imaged, &|k| mixed(k) + 1e-9 * alone(k));
     let misfit = |k: usize| if imaged(k) { mixed(k) } else { alone(k) };
     let deficit = (0..n)
