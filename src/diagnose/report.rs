@@ -395,6 +395,13 @@ impl Diagnosis {
                         .strip_suffix(REJECTED_NOT_BORNE_OUT)
                         .map(|k| (k, why))
                 })
+                .or_else(|| {
+                    let why = "a kept finding's own kind, scanned again, explains as much (the \
+                               kept finding a little off its place or size)";
+                    f.kind
+                        .strip_suffix(REJECTED_KEPT_KIND_EXPLAINS)
+                        .map(|k| (k, why))
+                })
         });
         match (self.is_clean(), rejected) {
             (true, None) => {
@@ -452,6 +459,13 @@ pub const REJECTED_NO_SIZE: &str = " (rejected: no size left)";
 /// re-solved model, no longer beats "no change" by [`super::procedure::MIN_BIC_GAIN`]; the
 /// row's gain is then the re-solved one.
 pub const REJECTED_NOT_BORNE_OUT: &str = " (rejected: not borne out once re-solved)";
+
+/// What a [`FamilyScore`]'s kind ends with when the round's best candidate does not beat, by
+/// [`super::procedure::MIN_BIC_GAIN`], what a kept finding's own kind scanned again explains of
+/// the same residual (the kept finding a little off its place or size); the row's gain is what
+/// the candidate adds on top of that.
+pub const REJECTED_KEPT_KIND_EXPLAINS: &str =
+    " (rejected: a kept finding's own kind, scanned again, explains it)";
 
 /// Why a local damping map alone would not show a finding of this kind.
 pub fn why_maps_miss(kind: &str) -> &'static str {
