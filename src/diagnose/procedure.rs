@@ -260,8 +260,6 @@ pub fn diagnose_with_progress(
             .map(|k| rescan(&k.hypothesis, &scorer, &view, &shares))
             .collect::<Result<Vec<_>, _>>()?;
         let best = cands.iter().min_by(|a, b| a.bic.total_cmp(&b.bic)).cloned();
-        // A new finding must pay against "no change" and, when a kept finding's size could
-        // explain what is left, on top of that resized finding too.
         // What `b` adds to the BIC on top of `r`, their first-order predictions summed.
         let gain_on_top = |r: &Candidate, b: &Candidate| {
             let joint = Prediction {
@@ -283,6 +281,9 @@ pub fn diagnose_with_progress(
                 .filter(|&g| g < MIN_BIC_GAIN)
                 .min_by(f64::total_cmp)
         });
+        // A new finding must pay against "no change" and, when a kept finding's size could
+        // explain what is left, on top of that resized finding too, and on top of every kept
+        // finding's correction.
         let pays = best.as_ref().is_some_and(|b| {
             none - b.bic >= MIN_BIC_GAIN
                 && resize
