@@ -164,8 +164,8 @@ pub fn report_markdown(d: &Diagnosis, recordings: &Path, model: &Path) -> String
         "\n## How each kind scored\n\nBIC gain over \"no change\" of each kind's best \
          explanation (a finding needs ≥ 6 after paying for its parameters and the places \
          searched; a row rejected as not borne out gives the gain through the re-solved \
-         model, one rejected because a kept finding's kind explains it the gain on top of \
-         that):\n\n| round | kind | BIC gain |\n|---|---|---|"
+         model; a row rejected because a kept finding's own kind explains it gives what it \
+         adds on top of that):\n\n| round | kind | BIC gain |\n|---|---|---|"
     );
     for s in &d.families {
         let _ = writeln!(out, "| {} | {} | {:.1} |", s.round + 1, s.kind, s.bic_gain);
