@@ -255,11 +255,15 @@ pub fn diagnose_with_progress(
         // scanned again, explains: a new finding must pay on top of that correction too (found:
         // a mass 0.04 m off its place left a stiffer strip along a free edge, +9.9, where a
         // second mass beside the first explained more).
-        let corrections = kept
-            .iter()
-            .map(|k| rescan(&k.hypothesis, &scorer, &view, &shares))
-            .collect::<Result<Vec<_>, _>>()?;
+        // (Scanned only when the round's best beats "no change": most last rounds do not.)
         let best = cands.iter().min_by(|a, b| a.bic.total_cmp(&b.bic)).cloned();
+        let corrections = match &best {
+            Some(b) if none - b.bic >= MIN_BIC_GAIN => kept
+                .iter()
+                .map(|k| rescan(&k.hypothesis, &scorer, &view, &shares))
+                .collect::<Result<Vec<_>, _>>()?,
+            _ => Vec::new(),
+        };
         // What `b` adds to the BIC on top of `r`, their first-order predictions summed.
         let gain_on_top = |r: &Candidate, b: &Candidate| {
             let joint = Prediction {
